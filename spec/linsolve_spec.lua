@@ -1,0 +1,116 @@
+local linsolve = require("tagpose.linsolve")
+
+-- residual max |a x - b| of the original system
+local function residual(n, a, x, b, nrhs)
+  nrhs = nrhs or 1
+  local worst = 0
+  for i = 1, n do
+    for k = 1, nrhs do
+      local s = -b[(i - 1) * nrhs + k]
+      for j = 1, n do
+        s = s + a[(i - 1) * n + j] * x[(j - 1) * nrhs + k]
+      end
+      worst = math.max(worst, math.abs(s))
+    end
+  end
+  return worst
+end
+
+local function copy(t)
+  local c = {}
+  for i = 1, #t do c[i] = t[i] end
+  return c
+end
+
+describe("tagpose.linsolve", function()
+  describe("solve()", function()
+    it("solves a system whose first pivot is zero (needs a row swap)", function()
+      local a = { 0, 2, 1,
+                  1, 1, 1,
+                  2, 1, 0 }
+      local b = { 5, 4, 4 } -- x = (1, 2, 1)
+      local x = assert(linsolve.solve(3, copy(a), copy(b)))
+      assert.near(1, x[1], 1e-14)
+      assert.near(2, x[2], 1e-14)
+      assert.near(1, x[3], 1e-14)
+    end)
+
+    it("stays accurate where elimination without pivoting loses every digit", function()
+      -- a tiny first pivot: without the swap, 1 - 1/eps swamps the second row
+      local eps = 1e-17
+      local a = { eps, 1,
+                  1,   1 }
+      local b = { 1, 2 } -- x ~ (1, 1)
+      local x = assert(linsolve.solve(2, copy(a), copy(b)))
+      assert.near(1, x[1], 1e-15)
+      assert.near(1, x[2], 1e-15)
+    end)
+
+    it("solves several right-hand sides at once", function()
+      local a = { 4, -2, 1, 3, 6, -4, 2, 1, 8 }
+      local b = { 1, 0, 0, 0, 1, 0, 0, 0, 1 } -- the inverse
+      local x = assert(linsolve.solve(3, copy(a), copy(b), 3))
+      assert.is_true(residual(3, a, x, b, 3) < 1e-14)
+    end)
+
+    it("solves random 8x8 systems to round-off", function()
+      local s = 12345
+      local function rand()
+        s = (16807 * s) % 2147483647
+        return s / 2147483647 - 0.5
+      end
+      for _ = 1, 50 do
+        local a, b = {}, {}
+        for i = 1, 64 do a[i] = rand() end
+        for i = 1, 8 do b[i] = rand() end
+        local x = assert(linsolve.solve(8, copy(a), copy(b)))
+        assert.is_true(residual(8, a, x, b) < 1e-12)
+      end
+    end)
+
+    it("reports a singular matrix instead of dividing by zero", function()
+      local a = { 1, 2, 3,
+                  2, 4, 6,
+                  1, 0, 1 }
+      local x, err = linsolve.solve(3, a, { 1, 2, 3 })
+      assert.is_nil(x)
+      assert.equal("linsolve: matrix is singular", err)
+    end)
+
+    it("reports a matrix singular to working precision", function()
+      local a = { 1, 1,
+                  1, 1 + 1e-15 }
+      local x, err = linsolve.solve(2, a, { 1, 2 })
+      assert.is_nil(x)
+      assert.equal("linsolve: matrix is singular", err)
+    end)
+
+    it("reports the zero matrix and non-finite entries", function()
+      assert.same({ nil, "linsolve: matrix is singular" },
+        { linsolve.solve(2, { 0, 0, 0, 0 }, { 1, 1 }) })
+      assert.same({ nil, "linsolve: matrix is not finite" },
+        { linsolve.solve(2, { 1, 0, 0, 0 / 0 }, { 1, 1 }) })
+      assert.same({ nil, "linsolve: matrix is not finite" },
+        { linsolve.solve(2, { 1, 0, 0, math.huge }, { 1, 1 }) })
+    end)
+  end)
+
+  describe("cholesky()", function()
+    it("solves a symmetric positive definite system", function()
+      local a = { 4, 2, 0.4,
+                  2, 5, 1,
+                  0.4, 1, 3 }
+      local b = { 1, 2, 3 }
+      local x = assert(linsolve.cholesky(3, copy(a), copy(b)))
+      assert.is_true(residual(3, a, x, b) < 1e-14)
+    end)
+
+    it("reports a matrix that is not positive definite", function()
+      local x, err = linsolve.cholesky(2, { 1, 2, 2, 1 }, { 1, 1 })
+      assert.is_nil(x)
+      assert.equal("linsolve: matrix is not positive definite", err)
+      assert.same({ nil, "linsolve: matrix is not positive definite" },
+        { linsolve.cholesky(2, { 1, 1, 1, 1 }, { 1, 1 }) })
+    end)
+  end)
+end)

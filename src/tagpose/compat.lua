@@ -1,0 +1,27 @@
+--- The only place that knows which Lua it runs on.
+--
+-- tagpose runs unchanged on Lua 5.1, 5.2, 5.3, 5.4 and LuaJIT 2.1. Every lookup whose name or
+-- meaning differs between them is made here, once, with the function of the newer Lua first.
+-- @module tagpose.compat
+
+local M = {}
+
+-- luacheck: push compat
+--- Two-argument arc tangent, `atan2(y, x)`, in radians (LuaJIT's `math.atan` ignores a second
+-- argument, so `math.atan2` must come first).
+M.atan2 = math.atan2 or math.atan
+
+--- `table.unpack` (5.2+) or the 5.1 global `unpack`.
+M.unpack = table.unpack or unpack
+-- luacheck: pop
+
+local huge = math.huge
+
+--- True when `v` is a number that is neither NaN nor ±infinity.
+-- @tparam any v
+-- @treturn boolean
+function M.is_finite(v)
+  return type(v) == "number" and v == v and v < huge and v > -huge
+end
+
+return M
