@@ -1,0 +1,73 @@
+--- Poses of a tag: its corners in the camera, their reprojection error, and the public result
+-- table.
+--
+-- Internally a pose is a flat rotation `r` (row-major 3×3, tag → camera, see
+-- `tagpose.rotation`) and a translation `tx, ty, tz` (the tag centre in the camera frame, in the
+-- unit of the tag size). The tag's corners, in the detection order of DESIGN.md, are
+-- `c1 = (-h, +h, 0)`, `c2 = (+h, +h, 0)`, `c3 = (+h, -h, 0)`, `c4 = (-h, -h, 0)`, `h` half the
+-- side. Pixels are a flat array `{u1, v1, u2, v2, u3, v3, u4, v4}`.
+-- @module tagpose.pose
+
+local rotation = require("tagpose.rotation")
+local camera_model = require("tagpose.camera")
+
+local sqrt = math.sqrt
+local project = camera_model.project
+
+local M = {}
+
+--- x and y of the corners in the tag frame, per unit half side, in detection order.
+M.CORNER_X = { -1, 1, 1, -1 }
+M.CORNER_Y = { 1, 1, -1, -1 }
+
+local CX, CY = M.CORNER_X, M.CORNER_Y
+
+--- RMS reprojection error, in pixels, of the four corners of a pose.
+-- @tparam table camera a checked camera
+-- @tparam {number,...} r flat rotation
+-- @tparam number tx
+-- @tparam number ty
+-- @tparam number tz
+-- @tparam number half half the tag's side
+-- @tparam {number,...} px the observed pixels, flat
+-- @treturn number RMS over the corners of the distance between observed and projected pixel
+--   (`math.huge` when a corner is not in front of the camera)
+function M.reprojection_error(camera, r, tx, ty, tz, half, px)
+  local sum = 0
+  for i = 1, 4 do
+    local a, b = CX[i] * half, CY[i] * half
+    local x = r[1] * a + r[2] * b + tx
+    local y = r[4] * a + r[5] * b + ty
+    local z = r[7] * a + r[8] * b + tz
+    if not (z > 0) then return math.huge end
+    local u, v = project(camera, x, y, z)
+    local du, dv = u - px[2 * i - 1], v - px[2 * i]
+    sum = sum + du * du + dv * dv
+  end
+  return sqrt(sum / 4)
+end
+
+--- Fill (or create) the public pose table of DESIGN.md from an internal pose.
+-- @tparam {number,...} r flat rotation
+-- @tparam number tx
+-- @tparam number ty
+-- @tparam number tz
+-- @tparam number err RMS reprojection error (px)
+-- @tparam int iterations solveQuad iterations
+-- @tparam[opt] table into a pose table to fill and return instead of a new one
+-- @treturn table `{position =, rotation =, quaternion =, error =, iterations =}`
+function M.result(r, tx, ty, tz, err, iterations, into)
+  local out = into or {}
+  local p = out.position or {}
+  p.x, p.y, p.z = tx, ty, tz
+  out.position = p
+  out.rotation = rotation.to_nested(r, out.rotation)
+  local q = out.quaternion or {}
+  q.w, q.x, q.y, q.z = rotation.to_quaternion(r)
+  out.quaternion = q
+  out.error = err
+  out.iterations = iterations
+  return out
+end
+
+return M
