@@ -1,0 +1,78 @@
+#!/usr/bin/env bash
+# tagpose's whole check, as CI runs it: install what is missing (Debian packages), lint, run the
+# specs on every Lua, and check that the rockspec installs the library that then loads.
+# Ends with one line "N passed, N failed" summing every run.
+#
+#   ./test.sh            everything
+#   ./test.sh lua5.4     the specs on the named VMs only (plus lint and the rockspec)
+set -u
+cd "$(dirname "$0")" || exit 1
+
+VMS=${*:-"lua5.1 lua5.2 lua5.3 lua5.4 luajit"}
+PACKAGES="lua5.1 lua5.2 lua5.3 lua5.4 luajit lua-busted lua-check luarocks"
+
+missing=""
+for p in $PACKAGES; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "ok installed" || missing="$missing $p"
+done
+if [ -n "$missing" ]; then
+  echo "installing:$missing"
+  sudo=""
+  [ "$(id -u)" -ne 0 ] && sudo="sudo"
+  if ! { $sudo apt-get update -qq && DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq \
+      $missing >/dev/null; }; then
+    echo "could not install:$missing"
+    echo "0 passed, 1 failed"
+    exit 1
+  fi
+fi
+
+passed=0
+failed=0
+pass() { passed=$((passed + $1)); }
+fail() { failed=$((failed + $1)); }
+
+echo "== luacheck"
+if luacheck --no-color -q .; then pass 1; else fail 1; fi
+
+for vm in $VMS; do
+  echo "== specs on $vm"
+  out=$(busted --lua="$vm" -o TAP 2>&1)
+  ok=$(printf '%s\n' "$out" | grep -c '^ok ')
+  nok=$(printf '%s\n' "$out" | grep -c '^not ok ')
+  if [ "$ok" -eq 0 ] && [ "$nok" -eq 0 ]; then
+    printf '%s\n' "$out" | tail -n 20
+    nok=1
+  elif [ "$nok" -gt 0 ]; then
+    printf '%s\n' "$out" | grep -A 12 '^not ok'
+  fi
+  echo "$vm: $ok passed, $nok failed"
+  pass "$ok"
+  fail "$nok"
+done
+
+echo "== rockspec installs into a fresh tree and is what require loads"
+tree=$(mktemp -d)
+if luarocks --tree "$tree" make rockspec/tagpose-scm-1.rockspec >"$tree/make.log" 2>&1; then
+  lv=$(luarocks config lua_version 2>/dev/null || echo 5.1)
+  if (cd "$tree" && "lua$lv" -e "
+      package.path = '$tree/share/lua/$lv/?.lua;$tree/share/lua/$lv/?/init.lua'
+      local tagpose = require('tagpose')
+      local src = debug.getinfo(tagpose.solve, 'S').source
+      assert(src:sub(1, #'@$tree') == '@$tree', 'loaded from ' .. src)
+      local pose = assert(tagpose.solve({{280, 280}, {360, 280}, {360, 200}, {280, 200}},
+        {fx = 883.98, fy = 883.98, cx = 319.5, cy = 239.5}, 0.024))
+      print('installed copy loads from ' .. src:sub(2) .. ', z = ' .. pose.position.z)
+    "); then
+    pass 1
+  else
+    fail 1
+  fi
+else
+  cat "$tree/make.log"
+  fail 1
+fi
+rm -rf "$tree"
+
+echo "$passed passed, $failed failed"
+[ "$failed" -eq 0 ]
