@@ -29,6 +29,7 @@ build = {
     ["tagpose.camera"] = "src/tagpose/camera.lua",
     ["tagpose.compat"] = "src/tagpose/compat.lua",
     ["tagpose.linsolve"] = "src/tagpose/linsolve.lua",
+    ["tagpose.log"] = "src/tagpose/log.lua",
     ["tagpose.pose"] = "src/tagpose/pose.lua",
     ["tagpose.rotation"] = "src/tagpose/rotation.lua",
     ["tagpose.solvequad"] = "src/tagpose/solvequad.lua",

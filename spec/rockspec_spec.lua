@@ -1,15 +1,13 @@
 -- The rockspecs' module maps are kept in step with src/.
 local lfs = require("lfs")
 
+local compat = require("tagpose.compat")
+
 local function load_rockspec(path)
   local env = {}
-  local chunk
-  if setfenv then
-    chunk = assert(loadfile(path))
-    setfenv(chunk, env)
-  else
-    chunk = assert(loadfile(path, "t", env))
-  end
+  local f = assert(io.open(path, "r"))
+  local chunk = assert(compat.load_text(f:read("*a"), "=" .. path, env))
+  f:close()
   chunk()
   return env
 end

@@ -13,6 +13,25 @@ M.atan2 = math.atan2 or math.atan
 
 --- `table.unpack` (5.2+) or the 5.1 global `unpack`.
 M.unpack = table.unpack or unpack
+
+local setfenv, loadstring = setfenv, loadstring
+
+--- Compile Lua source text as a chunk whose globals are the table `env` (text only, never
+-- bytecode).
+-- @tparam string text source
+-- @tparam string name chunk name for messages
+-- @tparam table env the chunk's environment
+-- @treturn function the chunk
+-- @return nil, string on a syntax error
+function M.load_text(text, name, env)
+  if setfenv then -- Lua 5.1, LuaJIT
+    if text:byte(1) == 27 then return nil, name .. ": binary chunks are not loaded" end
+    local chunk, err = loadstring(text, name)
+    if chunk then setfenv(chunk, env) end
+    return chunk, err
+  end
+  return load(text, name, "t", env)
+end
 -- luacheck: pop
 
 local huge = math.huge
