@@ -31,6 +31,7 @@ build = {
     ["tagpose.linsolve"] = "src/tagpose/linsolve.lua",
     ["tagpose.log"] = "src/tagpose/log.lua",
     ["tagpose.pose"] = "src/tagpose/pose.lua",
+    ["tagpose.refine"] = "src/tagpose/refine.lua",
     ["tagpose.rotation"] = "src/tagpose/rotation.lua",
     ["tagpose.solvequad"] = "src/tagpose/solvequad.lua",
     ["tagpose.square"] = "src/tagpose/square.lua",

@@ -4,7 +4,7 @@ local dataset = require("support.dataset")
 
 local sqrt, rad = math.sqrt, math.rad
 
-local METHODS = { "seed" }
+local METHODS = { "seed", "refined" }
 
 -- rotation error tolerance (degrees) and position tolerance (fraction of the distance)
 local ROT_TOL, POS_TOL = 1e-6, 1e-9

@@ -14,6 +14,8 @@ local camera_model = require("tagpose.camera")
 local square = require("tagpose.square")
 local solvequad = require("tagpose.solvequad")
 local pose = require("tagpose.pose")
+local refine = require("tagpose.refine")
+local rotation = require("tagpose.rotation")
 
 local is_finite, is_positive, describe = compat.is_finite, args.is_positive, args.describe
 local floor = math.floor
@@ -27,6 +29,7 @@ local m = {} -- normalised corners, flat
 local px = {} -- pixel corners, flat
 local q = {} -- the two quadratics' coefficients
 local r = {} -- rotation, flat
+local r2 = {} -- the other pose's rotation
 
 -- Read the corners into px. Returns true (or the index of the first non-finite corner), or
 -- false and a description of the misuse.
@@ -56,13 +59,13 @@ end
 
 -- Read the options: method, tolerance, max_iterations; or nil and a description of the misuse.
 local function read_options(options)
-  if options == nil then return "seed", solvequad.TOLERANCE, solvequad.MAX_ITERATIONS end
+  if options == nil then return "refined", solvequad.TOLERANCE, solvequad.MAX_ITERATIONS end
   if type(options) ~= "table" then return nil, "options table expected, got " .. type(options) end
   local method = options.method
   if method == nil then
-    method = "seed"
-  elseif method ~= "seed" then
-    return nil, "options.method: 'seed' expected, got " .. describe(method)
+    method = "refined"
+  elseif method ~= "refined" and method ~= "seed" then
+    return nil, "options.method: 'refined' or 'seed' expected, got " .. describe(method)
   end
   local tol = options.tolerance
   if tol == nil then
@@ -114,15 +117,51 @@ function M.solve(corners, camera, tag_size, options)
   end
   local l1, l2, l3, l4 = square.shape(m)
   if not l1 then return nil, l2 end
+  local half = 0.5 * tag_size
+  -- the report's method
   local X0, Y0 = square.proximate(l1, l2, l3, l4)
   square.quadratics(m, q)
   local X, Y, iterations = solvequad.solve(q, X0, Y0, tol, max_it)
-  if not X then return nil, Y end
-  local half = 0.5 * tag_size
-  local tx, ty, tz = square.pose(m, X, Y, half, r)
-  if not tx then return nil, ty end
-  local err = pose.reprojection_error(camera, r, tx, ty, tz, half, px)
-  return pose.result(r, tx, ty, tz, err, iterations)
+  local tx, ty, tz, problem
+  if X then
+    tx, ty, tz = square.pose(m, X, Y, half, r)
+    if not tx then problem = ty end
+  else
+    problem, iterations = Y, iterations
+  end
+  if method == "seed" then
+    if problem then return nil, problem end
+    local err = pose.reprojection_error(camera, r, tx, ty, tz, half, px)
+    return pose.result(r, tx, ty, tz, err, iterations)
+  end
+  -- refined: from the report's pose (or the proximate one where it has none), all four corners
+  if problem then
+    tx, ty, tz = square.proximate_pose(m, l1, l2, l3, l4, half, r)
+    if not tx then return nil, ty end
+  end
+  local c1, c2, k1, k2
+  tx, ty, tz, c1, k1 = refine.refine(camera, px, half, r, tx, ty, tz)
+  -- and the other local minimum of the planar ambiguity
+  refine.mirror(r, tx, ty, tz, r2)
+  local ux, uy, uz
+  ux, uy, uz, c2, k2 = refine.refine(camera, px, half, r2, tx, ty, tz)
+  if not (c1 < math.huge) and not (c2 < math.huge) then
+    return nil, "refine: no pose puts every corner in front of the camera"
+  end
+  local same = rotation.angle(r, r2) < 1e-6
+  local main = pose.result(r, tx, ty, tz, math.sqrt(c1 / 4), iterations)
+  local other
+  if not same and c2 < math.huge then
+    other = pose.result(r2, ux, uy, uz, math.sqrt(c2 / 4), iterations)
+    other.refine_iterations = k2
+  end
+  main.refine_iterations = k1 + k2
+  if other and c2 < c1 then
+    main, other = other, main
+    main.refine_iterations, other.refine_iterations = other.refine_iterations, k1
+  end
+  main.alternative = other
+  return main
 end
 
 return M
