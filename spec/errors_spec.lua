@@ -60,7 +60,8 @@ describe("tagpose.solve() errors", function()
       { function() tagpose.solve(good, camera, 1, "seed") end,
         "bad argument #4 to 'solve' (options table expected, got string)" },
       { function() tagpose.solve(good, camera, 1, { method = "fast" }) end,
-        "bad argument #4 to 'solve' (options.method: 'refined' or 'seed' expected, got string fast)" },
+        "bad argument #4 to 'solve' (options.method: 'refined' or 'seed' expected, "
+          .. "got string fast)" },
       { function() tagpose.solve(good, camera, 1, { tolerance = 0 }) end,
         "bad argument #4 to 'solve' (options.tolerance: positive number expected, got number 0)" },
       { function() tagpose.solve(good, camera, 1, { max_iterations = 2.5 }) end,

@@ -43,7 +43,8 @@ describe("tagpose.refine", function()
         local r, t = geometry.random_pose(rng, camera, s)
         local px = geometry.project(camera, r, t, s)
         local est = copy(r)
-        local tx, ty, tz, cost, k = refine.refine(camera, flat_pixels(px), s / 2, est, t[1], t[2], t[3])
+        local tx, ty, tz, cost, k = refine.refine(camera, flat_pixels(px), s / 2, est,
+          t[1], t[2], t[3])
         assert.rotation_near(r, est, 1e-9)
         assert.vector_near(t, { tx, ty, tz }, 1e-12 * t[3])
         assert.is_true(cost < 1e-18)
@@ -76,7 +77,8 @@ describe("tagpose.refine", function()
         local r, t = geometry.random_pose(rng, camera, s, { max_tilt = rad(60), width = 80 })
         local px = noisy(rng, geometry.project(camera, r, t, s), 1.0)
         local est = copy(r)
-        local tx, ty, tz, cost = refine.refine(camera, flat_pixels(px), s / 2, est, t[1], t[2], t[3])
+        local tx, ty, tz, cost = refine.refine(camera, flat_pixels(px), s / 2, est,
+          t[1], t[2], t[3])
         local best = { tx, ty, tz }
         assert.near(sse(est, best, s, px), cost, 1e-9 * cost)
         -- no small move in any of the six directions does better

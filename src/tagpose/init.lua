@@ -122,12 +122,13 @@ function M.solve(corners, camera, tag_size, options)
   local X0, Y0 = square.proximate(l1, l2, l3, l4)
   square.quadratics(m, q)
   local X, Y, iterations = solvequad.solve(q, X0, Y0, tol, max_it)
-  local tx, ty, tz, problem
+  local tx, ty, tz
+  problem = nil
   if X then
     tx, ty, tz = square.pose(m, X, Y, half, r)
     if not tx then problem = ty end
   else
-    problem, iterations = Y, iterations
+    problem = Y
   end
   if method == "seed" then
     if problem then return nil, problem end
