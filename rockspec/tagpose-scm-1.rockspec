@@ -35,6 +35,7 @@ build = {
     ["tagpose.rotation"] = "src/tagpose/rotation.lua",
     ["tagpose.solvequad"] = "src/tagpose/solvequad.lua",
     ["tagpose.square"] = "src/tagpose/square.lua",
+    ["tagpose.track"] = "src/tagpose/track.lua",
   },
 }
 test = {

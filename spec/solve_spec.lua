@@ -124,6 +124,31 @@ describe("tagpose.solve()", function()
     end)
   end
 
+  describe("options.into", function()
+    it("fills the caller's table and its sub-tables in place, with the same values", function()
+      local camera = cameras[1]
+      local rng = geometry.rng(77)
+      local into = {}
+      local tables
+      for n = 1, 30 do
+        local r, t = geometry.random_pose(rng, camera, 0.05, { width = rng.uniform(15, 150) })
+        local px = geometry.project(camera, r, t, 0.05)
+        for i = 1, 4 do
+          px[i][1], px[i][2] = px[i][1] + 0.5 * rng.normal(), px[i][2] + 0.5 * rng.normal()
+        end
+        local fresh = assert(tagpose.solve(px, camera, 0.05))
+        local filled = assert(tagpose.solve(px, camera, 0.05, { into = into }))
+        assert.equal(into, filled)
+        assert.same(fresh, filled, "case " .. n)
+        local now = { into.position, into.rotation, into.rotation[1], into.quaternion, into.track }
+        if tables then
+          for i = 1, #now do assert.equal(tables[i], now[i]) end
+        end
+        tables = now
+      end
+    end)
+  end)
+
   describe("on the exact dev set (spec/fixtures/exact)", function()
     local camera, corners, truth = dataset.load("spec/fixtures/exact")
     for _, method in ipairs(METHODS) do

@@ -60,8 +60,32 @@ function G.tag_corners(s)
   return { { -h, h, 0 }, { h, h, 0 }, { h, -h, 0 }, { -h, -h, 0 } }
 end
 
---- Pixels {{u, v}, ...} of the tag's corners for pose (r flat, t = {x, y, z}); nil if a corner
--- is not in front of the camera.
+--- OpenCV's lens models, written out from OpenCV's documentation (independently of tagpose):
+-- normalised undistorted (x, y) -> distorted (xd, yd).
+function G.distort(camera, x, y)
+  local d = camera.distortion
+  if not d then return x, y end
+  if camera.model == "fisheye" then
+    local r = math.sqrt(x * x + y * y)
+    if r == 0 then return x, y end
+    local th = math.atan(r)
+    local th2 = th * th
+    local thd = th * (1 + (d.k1 or 0) * th2 + (d.k2 or 0) * th2 ^ 2 + (d.k3 or 0) * th2 ^ 3
+      + (d.k4 or 0) * th2 ^ 4)
+    return thd / r * x, thd / r * y
+  end
+  local k1, k2, k3 = d.k1 or 0, d.k2 or 0, d.k3 or 0
+  local k4, k5, k6 = d.k4 or 0, d.k5 or 0, d.k6 or 0
+  local p1, p2 = d.p1 or 0, d.p2 or 0
+  local r2 = x * x + y * y
+  local radial = (1 + k1 * r2 + k2 * r2 ^ 2 + k3 * r2 ^ 3)
+    / (1 + k4 * r2 + k5 * r2 ^ 2 + k6 * r2 ^ 3)
+  return x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x),
+    y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
+end
+
+--- Pixels {{u, v}, ...} of the tag's corners for pose (r flat, t = {x, y, z}), through the
+-- camera's lens model if it has one; nil if a corner is not in front of the camera.
 function G.project(camera, r, t, s)
   local out = {}
   for i, c in ipairs(G.tag_corners(s)) do
@@ -69,7 +93,8 @@ function G.project(camera, r, t, s)
     local y = r[4] * c[1] + r[5] * c[2] + r[6] * c[3] + t[2]
     local z = r[7] * c[1] + r[8] * c[2] + r[9] * c[3] + t[3]
     if not (z > 0) then return nil end
-    out[i] = { camera.fx * x / z + camera.cx, camera.fy * y / z + camera.cy }
+    local xd, yd = G.distort(camera, x / z, y / z)
+    out[i] = { camera.fx * xd + camera.cx, camera.fy * yd + camera.cy }
   end
   return out
 end

@@ -13,23 +13,29 @@ local args = require("tagpose.args")
 local camera_model = require("tagpose.camera")
 local square = require("tagpose.square")
 local solvequad = require("tagpose.solvequad")
-local pose = require("tagpose.pose")
 local refine = require("tagpose.refine")
 local rotation = require("tagpose.rotation")
+local track = require("tagpose.track")
+local pose = require("tagpose.pose")
 
 local is_finite, is_positive, describe = compat.is_finite, args.is_positive, args.describe
-local floor = math.floor
+local floor, sqrt, huge = math.floor, math.sqrt, math.huge
+local to_quaternion = rotation.to_quaternion
 
 local M = {
   _VERSION = "tagpose 0.1.0",
+  camera = camera_model,
 }
 
 -- scratch, written in place on every solve and never handed out
-local m = {} -- normalised corners, flat
 local px = {} -- pixel corners, flat
+local m = {} -- normalised, undistorted corners, flat
 local q = {} -- the two quadratics' coefficients
-local r = {} -- rotation, flat
-local r2 = {} -- the other pose's rotation
+local r1, r2 = {}, {} -- rotations of the two candidates
+local qa, qb = {}, {} -- their quaternions {w, x, y, z}
+local state = {} -- tracking state of this frame
+local prior_state = {} -- tracking state made from a prior without one
+local spare = setmetatable({}, { __mode = "k" }) -- into -> an alternative table to reuse
 
 -- Read the corners into px. Returns true (or the index of the first non-finite corner), or
 -- false and a description of the misuse.
@@ -57,9 +63,55 @@ local function read_corners(corners)
   return bad
 end
 
--- Read the options: method, tolerance, max_iterations; or nil and a description of the misuse.
+-- The quaternion {w, x, y, z} of a pose table (quaternion or rotation field), or nil.
+local function pose_quaternion(p, out)
+  if type(p) ~= "table" then return nil end
+  local qt = p.quaternion
+  if type(qt) == "table" and is_finite(qt.w) and is_finite(qt.x) and is_finite(qt.y)
+    and is_finite(qt.z) then
+    local n = sqrt(qt.w * qt.w + qt.x * qt.x + qt.y * qt.y + qt.z * qt.z)
+    if n > 0 then
+      out[1], out[2], out[3], out[4] = qt.w / n, qt.x / n, qt.y / n, qt.z / n
+      return out
+    end
+  end
+  local rt = p.rotation
+  if type(rt) == "table" and type(rt[1]) == "table" and type(rt[2]) == "table"
+    and type(rt[3]) == "table" then
+    local flat = rotation.from_nested(rt, r2)
+    for i = 1, 9 do
+      if not is_finite(flat[i]) then return nil end
+    end
+    out[1], out[2], out[3], out[4] = to_quaternion(flat)
+    return out
+  end
+  return nil
+end
+
+-- The tracking state a prior carries, or one made from its pose (and alternative's).
+local function read_prior(prior)
+  local t = prior.track
+  if type(t) == "table" then
+    local ok = true
+    for i = 1, 10 do
+      if not is_finite(t[i]) then ok = false end
+    end
+    if ok and t[10] > 0 then return t end
+  end
+  if not pose_quaternion(prior, qa) then return nil end
+  local alt = pose_quaternion(prior.alternative, qb) or qa
+  for i = 1, 4 do
+    prior_state[i], prior_state[4 + i] = qa[i], alt[i]
+  end
+  prior_state[9], prior_state[10] = 0, nil -- the noise is taken from this frame
+  return prior_state
+end
+
+-- Read the options; or nil and a description of the misuse.
 local function read_options(options)
-  if options == nil then return "refined", solvequad.TOLERANCE, solvequad.MAX_ITERATIONS end
+  if options == nil then
+    return "refined", solvequad.TOLERANCE, solvequad.MAX_ITERATIONS
+  end
   if type(options) ~= "table" then return nil, "options table expected, got " .. type(options) end
   local method = options.method
   if method == nil then
@@ -79,22 +131,47 @@ local function read_options(options)
   elseif not (is_finite(max_it) and max_it >= 1 and floor(max_it) == max_it) then
     return nil, "options.max_iterations: positive integer expected, got " .. describe(max_it)
   end
-  return method, tol, max_it
+  local prior, into = options.prior, options.into
+  if prior ~= nil then
+    if type(prior) ~= "table" then
+      return nil, "options.prior: pose table expected, got " .. type(prior)
+    end
+    prior = read_prior(prior)
+    if not prior then
+      return nil, "options.prior: pose with a finite quaternion or rotation expected"
+    end
+  end
+  if into ~= nil and type(into) ~= "table" then
+    return nil, "options.into: table expected, got " .. type(into)
+  end
+  return method, tol, max_it, prior, into
 end
 
 local function arg_error(n, message)
   args.raise(n, "solve", message, 3)
 end
 
+local function finite_pose(r, tx, ty, tz, err)
+  local s = tx + ty + tz + err
+  for i = 1, 9 do s = s + r[i] end
+  return s == s and s < huge and s > -huge
+end
+
 --- Solve the pose of one tag.
 -- @tparam {{number,number},...} corners the four corners in detection order, each `{u, v}` or
 --   `{x = u, y = v}`, in pixels
--- @tparam table camera `{fx =, fy =, cx =, cy =}` in pixels
+-- @tparam table camera `{fx =, fy =, cx =, cy =}` in pixels, optionally `distortion` and
+--   `model` (see `tagpose.camera`)
 -- @tparam number tag_size side of the tag's black square (> 0); lengths come out in its unit
--- @tparam[opt] table options `method` (`"seed"`), `tolerance` (solveQuad's threshold,
---   default 1e-10), `max_iterations` (default 100)
+-- @tparam[opt] table options
+--
+--   - `method`: `"refined"` (default) or `"seed"` (the report's method exactly);
+--   - `prior`: the pose this tag had in the previous frame, for tracking (`tagpose.track`);
+--   - `into`: a pose table from an earlier call to fill instead of allocating a new one;
+--   - `tolerance` (solveQuad's threshold, default 1e-10), `max_iterations` (default 100).
 -- @treturn table pose `{position = {x, y, z}, rotation = {{...}, {...}, {...}},
---   quaternion = {w, x, y, z}, error = px, iterations = n}`
+--   quaternion = {w, x, y, z}, error = px, iterations = n, refine_iterations = n,
+--   alternative = pose or nil, track = state}`
 -- @return nil, string when the corners cannot be a tag's (the message says why)
 -- @raise `bad argument #n to 'solve' (...)` when an argument has the wrong type or range
 -- @usage
@@ -108,16 +185,19 @@ function M.solve(corners, camera, tag_size, options)
   if not is_positive(tag_size) then
     arg_error(3, "positive number expected for tag_size, got " .. describe(tag_size))
   end
-  local method, tol, max_it = read_options(options)
+  local method, tol, max_it, prior, into = read_options(options)
   if not method then arg_error(4, tol) end
   if bad ~= true then return nil, "tagpose: corner " .. bad .. " is not finite" end
 
   for i = 1, 4 do
-    m[2 * i - 1], m[2 * i] = camera_model.normalise(camera, px[2 * i - 1], px[2 * i])
+    local x, y = camera_model.normalise(camera, px[2 * i - 1], px[2 * i])
+    if not x then return nil, y .. " (corner " .. i .. ")" end
+    m[2 * i - 1], m[2 * i] = x, y
   end
   local l1, l2, l3, l4 = square.shape(m)
   if not l1 then return nil, l2 end
   local half = 0.5 * tag_size
+
   -- the report's method
   local X0, Y0 = square.proximate(l1, l2, l3, l4)
   square.quadratics(m, q)
@@ -125,44 +205,84 @@ function M.solve(corners, camera, tag_size, options)
   local tx, ty, tz
   problem = nil
   if X then
-    tx, ty, tz = square.pose(m, X, Y, half, r)
+    tx, ty, tz = square.pose(m, X, Y, half, r1)
     if not tx then problem = ty end
   else
     problem = Y
   end
   if method == "seed" then
     if problem then return nil, problem end
-    local err = pose.reprojection_error(camera, r, tx, ty, tz, half, px)
-    return pose.result(r, tx, ty, tz, err, iterations)
+    local err = pose.reprojection_error(camera, r1, tx, ty, tz, half, px)
+    if not finite_pose(r1, tx, ty, tz, err) then
+      return nil, "tagpose: no finite pose for these corners"
+    end
+    local result = pose.result(r1, tx, ty, tz, err, iterations, nil, into)
+    if into then into.alternative, into.track = nil, nil end
+    return result
   end
+
   -- refined: from the report's pose (or the proximate one where it has none), all four corners
   if problem then
-    tx, ty, tz = square.proximate_pose(m, l1, l2, l3, l4, half, r)
+    tx, ty, tz = square.proximate_pose(m, l1, l2, l3, l4, half, r1)
     if not tx then return nil, ty end
   end
-  local c1, c2, k1, k2
-  tx, ty, tz, c1, k1 = refine.refine(camera, px, half, r, tx, ty, tz)
+  local c1, k1, c2, k2
+  tx, ty, tz, c1, k1 = refine.refine(camera, px, half, r1, tx, ty, tz)
   -- and the other local minimum of the planar ambiguity
-  refine.mirror(r, tx, ty, tz, r2)
+  refine.mirror(r1, tx, ty, tz, r2)
   local ux, uy, uz
   ux, uy, uz, c2, k2 = refine.refine(camera, px, half, r2, tx, ty, tz)
-  if not (c1 < math.huge) and not (c2 < math.huge) then
-    return nil, "refine: no pose puts every corner in front of the camera"
+  local has2 = c2 < huge and rotation.angle(r1, r2) > 1e-6
+  if not (c1 < huge) then
+    if not has2 then return nil, "refine: no pose puts every corner in front of the camera" end
+    -- only the mirrored start led to a pose: it is the one
+    for i = 1, 9 do r1[i] = r2[i] end
+    tx, ty, tz, c1, has2 = ux, uy, uz, c2, false
   end
-  local same = rotation.angle(r, r2) < 1e-6
-  local main = pose.result(r, tx, ty, tz, math.sqrt(c1 / 4), iterations)
-  local other
-  if not same and c2 < math.huge then
-    other = pose.result(r2, ux, uy, uz, math.sqrt(c2 / 4), iterations)
-    other.refine_iterations = k2
+  local first = 1 -- which candidate is the pose: the smaller error, or the tracker's choice
+  if has2 and c2 < c1 then first = 2 end
+  local out_state = into and type(into.track) == "table" and into.track or state
+  qa[1], qa[2], qa[3], qa[4] = to_quaternion(first == 1 and r1 or r2)
+  local sse_a, sse_b = first == 1 and c1 or c2, first == 1 and c2 or c1
+  if has2 then qb[1], qb[2], qb[3], qb[4] = to_quaternion(first == 1 and r2 or r1) end
+  if prior then
+    if prior[10] == nil then prior[10] = math.max(0.5 * sse_a, track.NOISE_FLOOR) end
+    if track.choose(prior, qa, sse_a, has2 and qb or nil, sse_b, out_state) == 2 then
+      first = 3 - first
+    end
+  else
+    track.start(out_state, qa, sse_a, has2 and qb or nil, sse_b)
   end
-  main.refine_iterations = k1 + k2
-  if other and c2 < c1 then
-    main, other = other, main
-    main.refine_iterations, other.refine_iterations = other.refine_iterations, k1
+
+  local ra, rb = r1, r2
+  local ax, ay, az, bx, by, bz = tx, ty, tz, ux, uy, uz
+  local ca, cb, ka, kb = c1, c2, k1, k2
+  if first == 2 then
+    ra, rb, ax, ay, az, bx, by, bz, ca, cb, ka, kb = r2, r1, ux, uy, uz, tx, ty, tz, c2, c1, k2, k1
   end
-  main.alternative = other
-  return main
+  local ea, eb = sqrt(ca / 4), sqrt(cb / 4)
+  if not finite_pose(ra, ax, ay, az, ea) then
+    return nil, "tagpose: no finite pose for these corners"
+  end
+  local alt = nil
+  if has2 and finite_pose(rb, bx, by, bz, eb) then
+    local reuse = into and (into.alternative or spare[into])
+    alt = pose.result(rb, bx, by, bz, eb, iterations, kb, reuse)
+    alt.alternative, alt.track = nil, nil
+  end
+  local result = pose.result(ra, ax, ay, az, ea, iterations, ka + kb, into)
+  if into then
+    if result.alternative and not alt then spare[into] = result.alternative end
+  end
+  result.alternative = alt
+  local st = result.track
+  if type(st) ~= "table" then
+    result.track = { out_state[1], out_state[2], out_state[3], out_state[4], out_state[5],
+      out_state[6], out_state[7], out_state[8], out_state[9], out_state[10] }
+  elseif st ~= out_state then
+    for i = 1, 10 do st[i] = out_state[i] end
+  end
+  return result
 end
 
 return M

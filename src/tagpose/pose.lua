@@ -13,6 +13,7 @@ local camera_model = require("tagpose.camera")
 
 local sqrt = math.sqrt
 local project = camera_model.project
+local to_quaternion = rotation.to_quaternion
 
 local M = {}
 
@@ -48,26 +49,51 @@ function M.reprojection_error(camera, r, tx, ty, tz, half, px)
 end
 
 --- Fill (or create) the public pose table of DESIGN.md from an internal pose.
+-- A new table is built with table constructors (one allocation per table); `into` is filled in
+-- place, reusing its sub-tables, so that a caller who passes the same table every frame
+-- allocates nothing.
 -- @tparam {number,...} r flat rotation
 -- @tparam number tx
 -- @tparam number ty
 -- @tparam number tz
 -- @tparam number err RMS reprojection error (px)
 -- @tparam int iterations solveQuad iterations
+-- @tparam[opt] int refine_iterations refinement linearisations (refined method)
 -- @tparam[opt] table into a pose table to fill and return instead of a new one
--- @treturn table `{position =, rotation =, quaternion =, error =, iterations =}`
-function M.result(r, tx, ty, tz, err, iterations, into)
-  local out = into or {}
-  local p = out.position or {}
+-- @treturn table `{position =, rotation =, quaternion =, error =, iterations =,
+--   refine_iterations =}`
+function M.result(r, tx, ty, tz, err, iterations, refine_iterations, into)
+  local w, x, y, z = to_quaternion(r)
+  if not into then
+    return {
+      position = { x = tx, y = ty, z = tz },
+      rotation = { { r[1], r[2], r[3] }, { r[4], r[5], r[6] }, { r[7], r[8], r[9] } },
+      quaternion = { w = w, x = x, y = y, z = z },
+      error = err,
+      iterations = iterations,
+      refine_iterations = refine_iterations,
+    }
+  end
+  local p = into.position
+  if type(p) ~= "table" then
+    p = {}
+    into.position = p
+  end
   p.x, p.y, p.z = tx, ty, tz
-  out.position = p
-  out.rotation = rotation.to_nested(r, out.rotation)
-  local q = out.quaternion or {}
-  q.w, q.x, q.y, q.z = rotation.to_quaternion(r)
-  out.quaternion = q
-  out.error = err
-  out.iterations = iterations
-  return out
+  local rt = into.rotation
+  if type(rt) ~= "table" then
+    rt = {}
+    into.rotation = rt
+  end
+  rotation.to_nested(r, rt)
+  local qt = into.quaternion
+  if type(qt) ~= "table" then
+    qt = {}
+    into.quaternion = qt
+  end
+  qt.w, qt.x, qt.y, qt.z = w, x, y, z
+  into.error, into.iterations, into.refine_iterations = err, iterations, refine_iterations
+  return into
 end
 
 return M
