@@ -74,7 +74,8 @@ describe("tracking with options.prior", function()
       end
       prior = pose
     end
-    assert.is_true(first_right ~= nil and first_right <= 5, "recovered at " .. tostring(first_right))
+    assert.is_true(first_right ~= nil and first_right <= 5,
+      "recovered at " .. tostring(first_right))
   end)
 
   it("never keeps a clearly worse fit for the sake of the prior", function()
