@@ -95,6 +95,69 @@ describe("tagpose.linsolve", function()
     end)
   end)
 
+  describe("spd6()", function()
+    local function random_spd(rand)
+      -- A = M Mᵀ + 0.1 I for a random M: symmetric positive definite
+      local m, a = {}, {}
+      for i = 1, 36 do m[i] = rand() end
+      for i = 1, 6 do
+        for j = 1, 6 do
+          local v = i == j and 0.1 or 0
+          for k = 1, 6 do v = v + m[(i - 1) * 6 + k] * m[(j - 1) * 6 + k] end
+          a[(i - 1) * 6 + j] = v
+        end
+      end
+      return a
+    end
+    local function upper(a)
+      local u = {}
+      for i = 1, 6 do
+        for j = i, 6 do u[#u + 1] = a[(i - 1) * 6 + j] end
+      end
+      return u
+    end
+
+    it("solves random symmetric positive definite systems to round-off", function()
+      local s = 777
+      local function rand()
+        s = (16807 * s) % 2147483647
+        return s / 2147483647 - 0.5
+      end
+      for _ = 1, 50 do
+        local a = random_spd(rand)
+        local b = {}
+        for i = 1, 6 do b[i] = rand() end
+        local u = upper(a)
+        local x = { linsolve.spd6(u[1], u[2], u[3], u[4], u[5], u[6], u[7], u[8], u[9], u[10],
+          u[11], u[12], u[13], u[14], u[15], u[16], u[17], u[18], u[19], u[20], u[21],
+          b[1], b[2], b[3], b[4], b[5], b[6]) }
+        assert.equal(6, #x)
+        assert.is_true(residual(6, a, x, b) < 1e-10)
+      end
+    end)
+
+    it("does not care about the units of the unknowns", function()
+      -- the same system with unknown 4 in units a million times smaller
+      local a = { 4, 1, 0, 2e6, 0, 0,  1, 3, 0, 0, 0, 0,  0, 0, 2, 0, 0, 0,
+                  2e6, 0, 0, 5e12, 0, 0,  0, 0, 0, 0, 1, 0,  0, 0, 0, 0, 0, 1 }
+      local u = upper(a)
+      local x = { linsolve.spd6(u[1], u[2], u[3], u[4], u[5], u[6], u[7], u[8], u[9], u[10],
+        u[11], u[12], u[13], u[14], u[15], u[16], u[17], u[18], u[19], u[20], u[21],
+        1, 2, 3, 4e6, 5, 6) }
+      assert.equal(6, #x)
+      assert.is_true(residual(6, a, x, { 1, 2, 3, 4e6, 5, 6 }) < 1e-6)
+    end)
+
+    it("reports a matrix that is not positive definite", function()
+      assert.is_nil(linsolve.spd6(1, 0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 1, 0, 0,
+        1, 1, 1, 1, 1, 1))
+      assert.is_nil(linsolve.spd6(1, 2, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 1, 0, 1,
+        1, 1, 1, 1, 1, 1))
+      assert.is_nil(linsolve.spd6(0 / 0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 1, 0, 1,
+        1, 1, 1, 1, 1, 1))
+    end)
+  end)
+
   describe("cholesky()", function()
     it("solves a symmetric positive definite system", function()
       local a = { 4, 2, 0.4,

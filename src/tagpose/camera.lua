@@ -35,6 +35,7 @@ M.UNDISTORT_TOLERANCE = 1e-15
 M.UNDISTORT_ITERATIONS = 50
 
 local BROWN = { "k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6" }
+local checked = setmetatable({}, { __mode = "k" }) -- pinhole cameras found valid, and how
 local FISHEYE = { "k1", "k2", "k3", "k4" }
 
 --- Check a camera table; the entry points turn a message into a `bad argument` error.
@@ -47,6 +48,12 @@ function M.check(camera)
     return "camera table expected, got " .. type(camera)
   end
   local fx, fy, cx, cy = camera.fx, camera.fy, camera.cx, camera.cy
+  -- a camera checked before and unchanged since passes at once (solve checks every call)
+  local seen = checked[camera]
+  if seen and seen[1] == fx and seen[2] == fy and seen[3] == cx and seen[4] == cy
+    and seen[5] == camera.model and seen[6] == camera.distortion and seen[6] == nil then
+    return nil
+  end
   if not is_positive(fx) then return "camera.fx: positive number expected, got " .. describe(fx) end
   if not is_positive(fy) then return "camera.fy: positive number expected, got " .. describe(fy) end
   if not is_finite(cx) then return "camera.cx: finite number expected, got " .. describe(cx) end
@@ -55,7 +62,12 @@ function M.check(camera)
   if model ~= nil and model ~= "pinhole" and model ~= "fisheye" then
     return "camera.model: 'pinhole' or 'fisheye' expected, got " .. describe(model)
   end
-  if d == nil then return nil end
+  if d == nil then
+    seen = seen or {}
+    seen[1], seen[2], seen[3], seen[4], seen[5], seen[6] = fx, fy, cx, cy, model, nil
+    checked[camera] = seen
+    return nil
+  end
   if type(d) ~= "table" then
     return "camera.distortion: table expected, got " .. type(d)
   end

@@ -19,7 +19,7 @@ local track = require("tagpose.track")
 local pose = require("tagpose.pose")
 
 local is_finite, is_positive, describe = compat.is_finite, args.is_positive, args.describe
-local floor, sqrt, huge = math.floor, math.sqrt, math.huge
+local floor, sqrt, max, huge = math.floor, math.sqrt, math.max, math.huge
 local to_quaternion = rotation.to_quaternion
 
 local M = {
@@ -57,7 +57,8 @@ local function read_corners(corners)
       return false, "corner " .. i .. ": numbers {u, v} or {x =, y =} expected, got "
         .. describe(u) .. " and " .. describe(v)
     end
-    if bad == true and not (is_finite(u) and is_finite(v)) then bad = i end
+    -- finite exactly when u - u is 0 (NaN and ±inf give NaN)
+    if bad == true and not (u - u == 0 and v - v == 0) then bad = i end
     px[2 * i - 1], px[2 * i] = u, v
   end
   return bad
@@ -232,21 +233,37 @@ function M.solve(corners, camera, tag_size, options)
   refine.mirror(r1, tx, ty, tz, r2)
   local ux, uy, uz
   ux, uy, uz, c2, k2 = refine.refine(camera, px, half, r2, tx, ty, tz)
-  local has2 = c2 < huge and rotation.angle(r1, r2) > 1e-6
   if not (c1 < huge) then
-    if not has2 then return nil, "refine: no pose puts every corner in front of the camera" end
+    if not (c2 < huge) then
+      return nil, "refine: no pose puts every corner in front of the camera"
+    end
     -- only the mirrored start led to a pose: it is the one
     for i = 1, 9 do r1[i] = r2[i] end
-    tx, ty, tz, c1, has2 = ux, uy, uz, c2, false
+    tx, ty, tz, c1, c2 = ux, uy, uz, c2, huge
   end
-  local first = 1 -- which candidate is the pose: the smaller error, or the tracker's choice
-  if has2 and c2 < c1 then first = 2 end
+  local w1, x1, y1, z1 = to_quaternion(r1)
+  local w2, x2, y2, z2 = w1, x1, y1, z1
+  local has2 = false
+  if c2 < huge then
+    w2, x2, y2, z2 = to_quaternion(r2)
+    -- two minima, unless both starts reached the same one (the quaternions' chord, q ~ -q, below
+    -- 5e-7: an angle below 1e-6 rad)
+    local dw, dx, dy, dz = w1 - w2, x1 - x2, y1 - y2, z1 - z2
+    local sw, sx, sy, sz = w1 + w2, x1 + x2, y1 + y2, z1 + z2
+    local dp, dm = dw * dw + dx * dx + dy * dy + dz * dz, sw * sw + sx * sx + sy * sy + sz * sz
+    has2 = (dp < dm and dp or dm) > 2.5e-13
+  end
+  -- which candidate is the pose: the smaller error, or the tracker's choice
+  local first = (has2 and c2 < c1) and 2 or 1
   local out_state = into and type(into.track) == "table" and into.track or state
-  qa[1], qa[2], qa[3], qa[4] = to_quaternion(first == 1 and r1 or r2)
+  if first == 1 then
+    qa[1], qa[2], qa[3], qa[4], qb[1], qb[2], qb[3], qb[4] = w1, x1, y1, z1, w2, x2, y2, z2
+  else
+    qa[1], qa[2], qa[3], qa[4], qb[1], qb[2], qb[3], qb[4] = w2, x2, y2, z2, w1, x1, y1, z1
+  end
   local sse_a, sse_b = first == 1 and c1 or c2, first == 1 and c2 or c1
-  if has2 then qb[1], qb[2], qb[3], qb[4] = to_quaternion(first == 1 and r2 or r1) end
   if prior then
-    if prior[10] == nil then prior[10] = math.max(0.5 * sse_a, track.NOISE_FLOOR) end
+    if prior[10] == nil then prior[10] = max(0.5 * sse_a, track.NOISE_FLOOR) end
     if track.choose(prior, qa, sse_a, has2 and qb or nil, sse_b, out_state) == 2 then
       first = 3 - first
     end
@@ -259,6 +276,7 @@ function M.solve(corners, camera, tag_size, options)
   local ca, cb, ka, kb = c1, c2, k1, k2
   if first == 2 then
     ra, rb, ax, ay, az, bx, by, bz, ca, cb, ka, kb = r2, r1, ux, uy, uz, tx, ty, tz, c2, c1, k2, k1
+    w1, x1, y1, z1, w2, x2, y2, z2 = w2, x2, y2, z2, w1, x1, y1, z1
   end
   local ea, eb = sqrt(ca / 4), sqrt(cb / 4)
   if not finite_pose(ra, ax, ay, az, ea) then
@@ -267,13 +285,11 @@ function M.solve(corners, camera, tag_size, options)
   local alt = nil
   if has2 and finite_pose(rb, bx, by, bz, eb) then
     local reuse = into and (into.alternative or spare[into])
-    alt = pose.result(rb, bx, by, bz, eb, iterations, kb, reuse)
+    alt = pose.result(rb, bx, by, bz, eb, iterations, kb, reuse, w2, x2, y2, z2)
     alt.alternative, alt.track = nil, nil
   end
-  local result = pose.result(ra, ax, ay, az, ea, iterations, ka + kb, into)
-  if into then
-    if result.alternative and not alt then spare[into] = result.alternative end
-  end
+  local result = pose.result(ra, ax, ay, az, ea, iterations, ka + kb, into, w1, x1, y1, z1)
+  if into and result.alternative and not alt then spare[into] = result.alternative end
   result.alternative = alt
   local st = result.track
   if type(st) ~= "table" then

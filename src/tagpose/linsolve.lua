@@ -147,9 +147,10 @@ function M.cholesky(n, a, b, tol)
   return b
 end
 
---- Solve a 6×6 symmetric positive definite system by an unrolled Cholesky factorisation, on
--- scalars (nothing allocated): the upper triangle `a11, a12, ..., a16, a22, ..., a66` row by
--- row, then the right-hand side `b1..b6`.
+--- Solve a 6×6 symmetric positive definite system by an unrolled LDLᵀ factorisation (no square
+-- roots), on scalars, so nothing is allocated: the upper triangle `a11, a12, ..., a16, a22, ...,
+-- a66` row by row, then the right-hand side `b1..b6`. `e_ij = l_ij · d_j` are kept so each
+-- product is formed once.
 -- @treturn number x1 .. x6, the solution
 -- @return nil when the matrix is not positive definite to working precision (a pivot falls
 --   below `SINGULAR` times its own diagonal entry, a test that does not depend on the units of
@@ -159,49 +160,58 @@ function M.spd6(a11, a12, a13, a14, a15, a16, a22, a23, a24, a25, a26,
     b1, b2, b3, b4, b5, b6)
   local d1 = a11
   if not (d1 > M.SINGULAR * a11) then return nil end
-  local l11 = sqrt(d1)
-  local l21 = (a12) / l11
-  local l31 = (a13) / l11
-  local l41 = (a14) / l11
-  local l51 = (a15) / l11
-  local l61 = (a16) / l11
-  local d2 = a22 - l21 * l21
+  local e21 = a12
+  local l21 = e21 / d1
+  local e31 = a13
+  local l31 = e31 / d1
+  local e41 = a14
+  local l41 = e41 / d1
+  local e51 = a15
+  local l51 = e51 / d1
+  local e61 = a16
+  local l61 = e61 / d1
+  local d2 = a22 - l21 * e21
   if not (d2 > M.SINGULAR * a22) then return nil end
-  local l22 = sqrt(d2)
-  local l32 = (a23 - l31 * l21) / l22
-  local l42 = (a24 - l41 * l21) / l22
-  local l52 = (a25 - l51 * l21) / l22
-  local l62 = (a26 - l61 * l21) / l22
-  local d3 = a33 - l31 * l31 - l32 * l32
+  local e32 = a23 - l31 * e21
+  local l32 = e32 / d2
+  local e42 = a24 - l41 * e21
+  local l42 = e42 / d2
+  local e52 = a25 - l51 * e21
+  local l52 = e52 / d2
+  local e62 = a26 - l61 * e21
+  local l62 = e62 / d2
+  local d3 = a33 - l31 * e31 - l32 * e32
   if not (d3 > M.SINGULAR * a33) then return nil end
-  local l33 = sqrt(d3)
-  local l43 = (a34 - l41 * l31 - l42 * l32) / l33
-  local l53 = (a35 - l51 * l31 - l52 * l32) / l33
-  local l63 = (a36 - l61 * l31 - l62 * l32) / l33
-  local d4 = a44 - l41 * l41 - l42 * l42 - l43 * l43
+  local e43 = a34 - l41 * e31 - l42 * e32
+  local l43 = e43 / d3
+  local e53 = a35 - l51 * e31 - l52 * e32
+  local l53 = e53 / d3
+  local e63 = a36 - l61 * e31 - l62 * e32
+  local l63 = e63 / d3
+  local d4 = a44 - l41 * e41 - l42 * e42 - l43 * e43
   if not (d4 > M.SINGULAR * a44) then return nil end
-  local l44 = sqrt(d4)
-  local l54 = (a45 - l51 * l41 - l52 * l42 - l53 * l43) / l44
-  local l64 = (a46 - l61 * l41 - l62 * l42 - l63 * l43) / l44
-  local d5 = a55 - l51 * l51 - l52 * l52 - l53 * l53 - l54 * l54
+  local e54 = a45 - l51 * e41 - l52 * e42 - l53 * e43
+  local l54 = e54 / d4
+  local e64 = a46 - l61 * e41 - l62 * e42 - l63 * e43
+  local l64 = e64 / d4
+  local d5 = a55 - l51 * e51 - l52 * e52 - l53 * e53 - l54 * e54
   if not (d5 > M.SINGULAR * a55) then return nil end
-  local l55 = sqrt(d5)
-  local l65 = (a56 - l61 * l51 - l62 * l52 - l63 * l53 - l64 * l54) / l55
-  local d6 = a66 - l61 * l61 - l62 * l62 - l63 * l63 - l64 * l64 - l65 * l65
+  local e65 = a56 - l61 * e51 - l62 * e52 - l63 * e53 - l64 * e54
+  local l65 = e65 / d5
+  local d6 = a66 - l61 * e61 - l62 * e62 - l63 * e63 - l64 * e64 - l65 * e65
   if not (d6 > M.SINGULAR * a66) then return nil end
-  local l66 = sqrt(d6)
-  local y1 = (b1) / l11
-  local y2 = (b2 - l21 * y1) / l22
-  local y3 = (b3 - l31 * y1 - l32 * y2) / l33
-  local y4 = (b4 - l41 * y1 - l42 * y2 - l43 * y3) / l44
-  local y5 = (b5 - l51 * y1 - l52 * y2 - l53 * y3 - l54 * y4) / l55
-  local y6 = (b6 - l61 * y1 - l62 * y2 - l63 * y3 - l64 * y4 - l65 * y5) / l66
-  local x6 = (y6) / l66
-  local x5 = (y5 - l65 * x6) / l55
-  local x4 = (y4 - l54 * x5 - l64 * x6) / l44
-  local x3 = (y3 - l43 * x4 - l53 * x5 - l63 * x6) / l33
-  local x2 = (y2 - l32 * x3 - l42 * x4 - l52 * x5 - l62 * x6) / l22
-  local x1 = (y1 - l21 * x2 - l31 * x3 - l41 * x4 - l51 * x5 - l61 * x6) / l11
+  local y1 = b1
+  local y2 = b2 - l21 * y1
+  local y3 = b3 - l31 * y1 - l32 * y2
+  local y4 = b4 - l41 * y1 - l42 * y2 - l43 * y3
+  local y5 = b5 - l51 * y1 - l52 * y2 - l53 * y3 - l54 * y4
+  local y6 = b6 - l61 * y1 - l62 * y2 - l63 * y3 - l64 * y4 - l65 * y5
+  local x6 = y6 / d6
+  local x5 = y5 / d5 - l65 * x6
+  local x4 = y4 / d4 - l54 * x5 - l64 * x6
+  local x3 = y3 / d3 - l43 * x4 - l53 * x5 - l63 * x6
+  local x2 = y2 / d2 - l32 * x3 - l42 * x4 - l52 * x5 - l62 * x6
+  local x1 = y1 / d1 - l21 * x2 - l31 * x3 - l41 * x4 - l51 * x5 - l61 * x6
   return x1, x2, x3, x4, x5, x6
 end
 

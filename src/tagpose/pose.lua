@@ -60,10 +60,15 @@ end
 -- @tparam int iterations solveQuad iterations
 -- @tparam[opt] int refine_iterations refinement linearisations (refined method)
 -- @tparam[opt] table into a pose table to fill and return instead of a new one
+-- @tparam[opt] number qw the rotation's quaternion, when the caller has it already
+-- @tparam[opt] number qx
+-- @tparam[opt] number qy
+-- @tparam[opt] number qz
 -- @treturn table `{position =, rotation =, quaternion =, error =, iterations =,
 --   refine_iterations =}`
-function M.result(r, tx, ty, tz, err, iterations, refine_iterations, into)
-  local w, x, y, z = to_quaternion(r)
+function M.result(r, tx, ty, tz, err, iterations, refine_iterations, into, qw, qx, qy, qz)
+  local w, x, y, z = qw, qx, qy, qz
+  if w == nil then w, x, y, z = to_quaternion(r) end
   if not into then
     return {
       position = { x = tx, y = ty, z = tz },

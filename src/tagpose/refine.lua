@@ -21,7 +21,6 @@
 -- `{u1, v1, ..., u4, v4}`; `half` is half the tag side.
 -- @module tagpose.refine
 
-local rotation = require("tagpose.rotation")
 local linsolve = require("tagpose.linsolve")
 local camera_model = require("tagpose.camera")
 
@@ -29,7 +28,6 @@ local sqrt = math.sqrt
 local huge = math.huge
 local lens, brown, fisheye = camera_model.lens, camera_model.brown, camera_model.fisheye
 local spd6 = linsolve.spd6
-local from_rotation_vector, multiply = rotation.from_rotation_vector, rotation.multiply
 
 local M = {}
 
@@ -45,29 +43,29 @@ M.STEP_TOLERANCE = 1e-5
 local CX = { -1, 1, 1, -1 }
 local CY = { 1, 1, -1, -1 }
 
-local trial = {} -- trial rotation
-local inc = {} -- rotation increment
+-- The constants of a refinement: fx, fy, cx, cy, half the tag side, the lens kind and its
+-- coefficients (see camera.lens), filled once per call.
+local function constants(C, camera, half)
+  C[1], C[2], C[3], C[4], C[5] = camera.fx, camera.fy, camera.cx, camera.cy, half
+  C[6], C[7], C[8], C[9], C[10], C[11], C[12], C[13], C[14] = lens(camera)
+  for i = 7, 14 do
+    if C[i] == nil then C[i] = 0 end
+  end
+  return C
+end
 
---- Sum of squared pixel residuals of a pose.
--- @tparam table camera a checked camera
--- @tparam {number,...} px observed pixels, flat
--- @tparam number half half the tag side
--- @tparam {number,...} r flat rotation
--- @tparam number tx
--- @tparam number ty
--- @tparam number tz
--- @treturn number the sum over the four corners of the squared pixel distance (`math.huge` when
---   a corner is not in front of the camera)
-function M.cost(camera, px, half, r, tx, ty, tz)
-  local fx, fy, cx, cy = camera.fx, camera.fy, camera.cx, camera.cy
-  local kind, l1, l2, l3, l4, l5, l6, l7, l8 = lens(camera)
-  local r1, r2, r4, r5, r7, r8 = r[1], r[2], r[4], r[5], r[7], r[8]
+-- Sum of squared pixel residuals of a pose Q = {ax, ay, az, bx, by, bz, tx, ty, tz}: the tag's x
+-- and y axes in the camera (columns 1 and 2 of R) and t (see M.cost).
+local function residuals(px, C, Q)
+  local fx, fy, cx, cy, half, kind = C[1], C[2], C[3], C[4], C[5], C[6]
+  local ax, ay, az, bx, by, bz, tx, ty, tz = Q[1], Q[2], Q[3], Q[4], Q[5], Q[6], Q[7], Q[8], Q[9]
+  local l1, l2, l3, l4, l5, l6, l7, l8 = C[7], C[8], C[9], C[10], C[11], C[12], C[13], C[14]
   local sum = 0
   for i = 1, 4 do
-    local a, b = CX[i] * half, CY[i] * half
-    local z = r7 * a + r8 * b + tz
+    local ca, cb = CX[i] * half, CY[i] * half
+    local z = az * ca + bz * cb + tz
     if not (z > 0) then return huge end
-    local pu, pv = (r1 * a + r2 * b + tx) / z, (r4 * a + r5 * b + ty) / z
+    local pu, pv = (ax * ca + bx * cb + tx) / z, (ay * ca + by * cb + ty) / z
     if kind == 1 then
       pu, pv = brown(pu, pv, l1, l2, l3, l4, l5, l6, l7, l8)
     elseif kind == 2 then
@@ -79,7 +77,138 @@ function M.cost(camera, px, half, r, tx, ty, tz)
   return sum
 end
 
-local cost = M.cost
+--- Sum of squared pixel residuals of a pose.
+-- @tparam table camera a checked camera
+-- @tparam {number,...} px observed pixels, flat
+-- @tparam number half half the tag side
+-- @tparam {number,...} r flat rotation
+-- @tparam number tx
+-- @tparam number ty
+-- @tparam number tz
+-- @treturn number the sum over the four corners of the squared pixel distance (`math.huge` when
+--   a corner is not in front of the camera)
+local cost_constants, cost_pose = {}, {}
+
+function M.cost(camera, px, half, r, tx, ty, tz)
+  local Q = cost_pose
+  Q[1], Q[2], Q[3], Q[4], Q[5], Q[6], Q[7], Q[8], Q[9] = r[1], r[4], r[7], r[2], r[5], r[8], tx,
+    ty, tz
+  return residuals(px, constants(cost_constants, camera, half), Q)
+end
+
+-- The normal equations H δ = -g of the pose Q (axes a, b; t), accumulated into N as
+-- {h11, h12, ..., h16, h22, ..., h66, g1, ..., g6} (upper triangle row by row), and the sum of
+-- squared residuals (math.huge when a corner is not in front of the camera). The sums live in
+-- the table, not in 27 locals: LuaJIT cannot compile a loop exit with that many live values
+-- (PUC Lua pays about a tenth more for it). The pose, too, travels in tables (P, Q) so the
+-- refinement loop carries few values.
+local function linearise(N, px, C, Q)
+  local fx, fy, cx, cy, half, kind = C[1], C[2], C[3], C[4], C[5], C[6]
+  local qax, qay, qaz, qbx, qby, qbz, qx, qy, qz = Q[1], Q[2], Q[3], Q[4], Q[5], Q[6], Q[7], Q[8],
+    Q[9]
+  local l1, l2, l3, l4, l5, l6, l7, l8 = C[7], C[8], C[9], C[10], C[11], C[12], C[13], C[14]
+  for k = 1, 27 do N[k] = 0 end
+  local s = 0
+  for i = 1, 4 do
+    local ca, cb = CX[i] * half, CY[i] * half
+    -- the corner relative to the tag centre (Y), in the camera frame
+    local y1, y2, y3 = qax * ca + qbx * cb, qay * ca + qby * cb, qaz * ca + qbz * cb
+    local z = y3 + qz
+    if not (z > 0) then
+      s = huge
+      break
+    end
+    local iz = 1 / z
+    local pu, pv = (y1 + qx) * iz, (y2 + qy) * iz
+    if kind == 0 then
+      -- pinhole: the Jacobian rows are u = (fx/z)·(-pu·Y2, Y3 + pu·Y1, -Y2, 1, 0, -pu) and
+      -- v = (fy/z)·(-pv·Y2 - Y3, pv·Y1, Y1, 0, 1, -pv); H += u uᵀ + v vᵀ, g += u ru + v rv
+      local ru, rv = fx * pu + cx - px[2 * i - 1], fy * pv + cy - px[2 * i]
+      s = s + ru * ru + rv * rv
+      local fa, fb = fx * iz, fy * iz
+      local u1, u2, u3, u6 = -fa * pu * y2, fa * (y3 + pu * y1), -fa * y2, -fa * pu
+      local v1, v2, v3, v6 = -fb * (pv * y2 + y3), fb * pv * y1, fb * y1, -fb * pv
+      N[1], N[2] = N[1] + u1 * u1 + v1 * v1, N[2] + u1 * u2 + v1 * v2
+      N[3], N[4], N[5] = N[3] + u1 * u3 + v1 * v3, N[4] + u1 * fa, N[5] + v1 * fb
+      N[6], N[7] = N[6] + u1 * u6 + v1 * v6, N[7] + u2 * u2 + v2 * v2
+      N[8], N[9], N[10] = N[8] + u2 * u3 + v2 * v3, N[9] + u2 * fa, N[10] + v2 * fb
+      N[11], N[12] = N[11] + u2 * u6 + v2 * v6, N[12] + u3 * u3 + v3 * v3
+      N[13], N[14], N[15] = N[13] + u3 * fa, N[14] + v3 * fb, N[15] + u3 * u6 + v3 * v6
+      N[16], N[18], N[19] = N[16] + fa * fa, N[18] + fa * u6, N[19] + fb * fb
+      N[20], N[21] = N[20] + fb * v6, N[21] + u6 * u6 + v6 * v6
+      N[22], N[23] = N[22] + u1 * ru + v1 * rv, N[23] + u2 * ru + v2 * rv
+      N[24], N[25] = N[24] + u3 * ru + v3 * rv, N[25] + fa * ru
+      N[26], N[27] = N[26] + fb * rv, N[27] + u6 * ru + v6 * rv
+    else
+      -- through the lens: per residual, e = f·(j_1 ∂pu/∂X + j_2 ∂pv/∂X), ∂p/∂X = (1, 0, -p) / z,
+      -- and the Jacobian row is (Y × e, e)
+      local xd, yd, j11, j12, j21, j22
+      if kind == 1 then
+        xd, yd, j11, j12, j21, j22 = brown(pu, pv, l1, l2, l3, l4, l5, l6, l7, l8)
+      else
+        xd, yd, j11, j12, j21, j22 = fisheye(pu, pv, l1, l2, l3, l4)
+      end
+      local ru, rv = fx * xd + cx - px[2 * i - 1], fy * yd + cy - px[2 * i]
+      s = s + ru * ru + rv * rv
+      for row = 1, 2 do
+        local e1, e2, res = fx * j11 * iz, fx * j12 * iz, ru
+        if row == 2 then e1, e2, res = fy * j21 * iz, fy * j22 * iz, rv end
+        local e3 = -(e1 * pu + e2 * pv)
+        local w1, w2, w3 = y2 * e3 - y3 * e2, y3 * e1 - y1 * e3, y1 * e2 - y2 * e1
+        N[1], N[2], N[3] = N[1] + w1 * w1, N[2] + w1 * w2, N[3] + w1 * w3
+        N[4], N[5], N[6] = N[4] + w1 * e1, N[5] + w1 * e2, N[6] + w1 * e3
+        N[7], N[8], N[9] = N[7] + w2 * w2, N[8] + w2 * w3, N[9] + w2 * e1
+        N[10], N[11], N[12] = N[10] + w2 * e2, N[11] + w2 * e3, N[12] + w3 * w3
+        N[13], N[14], N[15] = N[13] + w3 * e1, N[14] + w3 * e2, N[15] + w3 * e3
+        N[16], N[17], N[18] = N[16] + e1 * e1, N[17] + e1 * e2, N[18] + e1 * e3
+        N[19], N[20], N[21] = N[19] + e2 * e2, N[20] + e2 * e3, N[21] + e3 * e3
+        N[22], N[23], N[24] = N[22] + w1 * res, N[23] + w2 * res, N[24] + w3 * res
+        N[25], N[26], N[27] = N[25] + e1 * res, N[26] + e2 * res, N[27] + e3 * res
+      end
+    end
+  end
+  return s
+end
+
+-- The damped Gauss-Newton step from the pose P with the normal equations N, the damping raised
+-- until the system solves: writes the trial pose into Q and returns the damping used and the
+-- predicted squared displacement of the corners; nil when no damping up to 1e8 solves.
+local function step(N, lambda, P, Q)
+  local d1, d2, d3, d4, d5, d6
+  while true do
+    local f = 1 + lambda
+    d1, d2, d3, d4, d5, d6 = spd6(N[1] * f, N[2], N[3], N[4], N[5], N[6], N[7] * f, N[8],
+      N[9], N[10], N[11], N[12] * f, N[13], N[14], N[15], N[16] * f, N[17], N[18],
+      N[19] * f, N[20], N[21] * f, -N[22], -N[23], -N[24], -N[25], -N[26], -N[27])
+    if d1 then break end
+    if lambda > 1e8 then return nil end
+    lambda = lambda * 10
+  end
+  -- predicted squared displacement of the corners: δᵀHδ = -δ·g - λ Σ H_ii δ_i²
+  local disp = -(d1 * N[22] + d2 * N[23] + d3 * N[24] + d4 * N[25] + d5 * N[26] + d6 * N[27])
+    - lambda * (N[1] * d1 * d1 + N[7] * d2 * d2 + N[12] * d3 * d3 + N[16] * d4 * d4
+      + N[19] * d5 * d5 + N[21] * d6 * d6)
+  -- the trial: R ← C(δω) R by the Cayley transform of w = δω / 2,
+  -- C = I + 2 ([w]× + [w]×²) / (1 + |w|²), an exact rotation that is exp(δω) to first order
+  local w1, w2, w3 = 0.5 * d1, 0.5 * d2, 0.5 * d3
+  local ww = w1 * w1 + w2 * w2 + w3 * w3
+  local n = 2 / (1 + ww)
+  local c11, c22, c33 = 1 + n * (w1 * w1 - ww), 1 + n * (w2 * w2 - ww), 1 + n * (w3 * w3 - ww)
+  local p12, p13, p23 = n * w1 * w2, n * w1 * w3, n * w2 * w3
+  local c12, c21, c13, c31 = p12 - n * w3, p12 + n * w3, p13 + n * w2, p13 - n * w2
+  local c23, c32 = p23 - n * w1, p23 + n * w1
+  local ax, ay, az, bx, by, bz = P[1], P[2], P[3], P[4], P[5], P[6]
+  Q[1], Q[2], Q[3] = c11 * ax + c12 * ay + c13 * az, c21 * ax + c22 * ay + c23 * az,
+    c31 * ax + c32 * ay + c33 * az
+  Q[4], Q[5], Q[6] = c11 * bx + c12 * by + c13 * bz, c21 * bx + c22 * by + c23 * bz,
+    c31 * bx + c32 * by + c33 * bz
+  Q[7], Q[8], Q[9] = P[7] + d4, P[8] + d5, P[9] + d6
+  return lambda, disp
+end
+
+local N = {} -- the normal equations, filled by linearise
+local K = {} -- the constants of the refinement under way
+local pose_p, pose_q = {}, {} -- its pose and trial pose
 
 --- Refine a pose in place over the four corners.
 -- @tparam table camera a checked camera
@@ -98,100 +227,50 @@ local cost = M.cost
 -- @treturn int linearisations used
 function M.refine(camera, px, half, r, tx, ty, tz, max_iterations)
   max_iterations = max_iterations or M.MAX_ITERATIONS
-  local fx, fy, cx, cy = camera.fx, camera.fy, camera.cx, camera.cy
-  local kind, l1, l2, l3, l4, l5, l6, l7, l8 = lens(camera)
+  local C = constants(K, camera, half)
   local floor, relative = 4 * M.STEP_TOLERANCE * M.STEP_TOLERANCE, M.STEP_RELATIVE
-  local lambda = 1e-6
-  local k = 0
-  local sum = huge
+  -- the pose P and the pose to linearise next Q (the start, then each trial), each as the tag's
+  -- x and y axes in the camera (columns 1 and 2 of R; column 3 is their cross product) and t
+  local P, Q = pose_p, pose_q
+  Q[1], Q[2], Q[3], Q[4], Q[5], Q[6], Q[7], Q[8], Q[9] = r[1], r[4], r[7], r[2], r[5], r[8], tx,
+    ty, tz
+  for i = 1, 9 do P[i] = Q[i] end
+  local lambda, k, sum, retry = 1e-6, 0, huge, false
   while k < max_iterations do
     k = k + 1
-    -- linearise: normal equations H δ = -g and the cost, corner by corner
-    local h11, h12, h13, h14, h15, h16 = 0, 0, 0, 0, 0, 0
-    local h22, h23, h24, h25, h26 = 0, 0, 0, 0, 0
-    local h33, h34, h35, h36 = 0, 0, 0, 0
-    local h44, h45, h46, h55, h56, h66 = 0, 0, 0, 0, 0, 0
-    local g1, g2, g3, g4, g5, g6 = 0, 0, 0, 0, 0, 0
-    local r1, r2, r4, r5, r7, r8 = r[1], r[2], r[4], r[5], r[7], r[8]
-    sum = 0
-    for i = 1, 4 do
-      local a, b = CX[i] * half, CY[i] * half
-      local y1, y2, y3 = r1 * a + r2 * b, r4 * a + r5 * b, r7 * a + r8 * b
-      local z = y3 + tz
-      if not (z > 0) then return tx, ty, tz, huge, k end
-      local iz = 1 / z
-      local pu, pv = (y1 + tx) * iz, (y2 + ty) * iz
-      local xd, yd, j11, j12, j21, j22 = pu, pv, 1, 0, 0, 1
-      if kind == 1 then
-        xd, yd, j11, j12, j21, j22 = brown(pu, pv, l1, l2, l3, l4, l5, l6, l7, l8)
-      elseif kind == 2 then
-        xd, yd, j11, j12, j21, j22 = fisheye(pu, pv, l1, l2, l3, l4)
-      end
-      local ru = fx * xd + cx - px[2 * i - 1]
-      local rv = fy * yd + cy - px[2 * i]
-      sum = sum + ru * ru + rv * rv
-      -- row u: e = fx·(j11 ∂pu/∂X + j12 ∂pv/∂X), with ∂p/∂X = (1, 0, -p) / z; the Jacobian
-      -- row is (Y × e, e)
-      local e1, e2 = fx * j11 * iz, fx * j12 * iz
-      local e3 = -(e1 * pu + e2 * pv)
-      local w1, w2, w3 = y2 * e3 - y3 * e2, y3 * e1 - y1 * e3, y1 * e2 - y2 * e1
-      h11, h12, h13 = h11 + w1 * w1, h12 + w1 * w2, h13 + w1 * w3
-      h14, h15, h16 = h14 + w1 * e1, h15 + w1 * e2, h16 + w1 * e3
-      h22, h23, h24, h25, h26 = h22 + w2 * w2, h23 + w2 * w3, h24 + w2 * e1, h25 + w2 * e2,
-        h26 + w2 * e3
-      h33, h34, h35, h36 = h33 + w3 * w3, h34 + w3 * e1, h35 + w3 * e2, h36 + w3 * e3
-      h44, h45, h46 = h44 + e1 * e1, h45 + e1 * e2, h46 + e1 * e3
-      h55, h56, h66 = h55 + e2 * e2, h56 + e2 * e3, h66 + e3 * e3
-      g1, g2, g3 = g1 + w1 * ru, g2 + w2 * ru, g3 + w3 * ru
-      g4, g5, g6 = g4 + e1 * ru, g5 + e2 * ru, g6 + e3 * ru
-      -- row v: the same with fy, j21, j22
-      e1, e2 = fy * j21 * iz, fy * j22 * iz
-      e3 = -(e1 * pu + e2 * pv)
-      w1, w2, w3 = y2 * e3 - y3 * e2, y3 * e1 - y1 * e3, y1 * e2 - y2 * e1
-      h11, h12, h13 = h11 + w1 * w1, h12 + w1 * w2, h13 + w1 * w3
-      h14, h15, h16 = h14 + w1 * e1, h15 + w1 * e2, h16 + w1 * e3
-      h22, h23, h24, h25, h26 = h22 + w2 * w2, h23 + w2 * w3, h24 + w2 * e1, h25 + w2 * e2,
-        h26 + w2 * e3
-      h33, h34, h35, h36 = h33 + w3 * w3, h34 + w3 * e1, h35 + w3 * e2, h36 + w3 * e3
-      h44, h45, h46 = h44 + e1 * e1, h45 + e1 * e2, h46 + e1 * e3
-      h55, h56, h66 = h55 + e2 * e2, h56 + e2 * e3, h66 + e3 * e3
-      g1, g2, g3 = g1 + w1 * rv, g2 + w2 * rv, g3 + w3 * rv
-      g4, g5, g6 = g4 + e1 * rv, g5 + e2 * rv, g6 + e3 * rv
-    end
-    if not (sum < huge) then return tx, ty, tz, huge, k end
-    -- damped steps until one lowers the cost
-    local accepted, converged = false, false
-    while true do
-      local s = 1 + lambda
-      local d1, d2, d3, d4, d5, d6 = spd6(h11 * s, h12, h13, h14, h15, h16, h22 * s, h23, h24,
-        h25, h26, h33 * s, h34, h35, h36, h44 * s, h45, h46, h55 * s, h56, h66 * s,
-        -g1, -g2, -g3, -g4, -g5, -g6)
-      if d1 then
-        -- predicted squared displacement of the corners: δᵀHδ = -δ·g - λ Σ H_ii δ_i²
-        local disp = -(d1 * g1 + d2 * g2 + d3 * g3 + d4 * g4 + d5 * g5 + d6 * g6)
-          - lambda * (h11 * d1 * d1 + h22 * d2 * d2 + h33 * d3 * d3 + h44 * d4 * d4
-            + h55 * d5 * d5 + h66 * d6 * d6)
-        converged = disp < floor + relative * sum
-        from_rotation_vector(d1, d2, d3, inc)
-        multiply(inc, r, trial)
-        local nx, ny, nz = tx + d4, ty + d5, tz + d6
-        local c = cost(camera, px, half, trial, nx, ny, nz)
+    -- linearise at Q: the normal equations and the cost
+    local s = linearise(N, px, C, Q)
+    if k == 1 and not (s < huge) then return tx, ty, tz, huge, k end
+    if s <= sum or retry then
+      -- the trial lowered the cost (or this is the start, or the pose again): it is the pose
+      for i = 1, 9 do P[i] = Q[i] end
+      sum = s
+      if k > 1 and not retry and lambda > 1e-12 then lambda = lambda * 0.1 end
+      retry = false
+      local disp
+      lambda, disp = step(N, lambda, P, Q)
+      if not lambda then break end
+      if disp < floor + relative * sum or k >= max_iterations then
+        -- converged (or out of linearisations): the cost of the last step decides
+        local c = residuals(px, C, Q)
         if c <= sum then
-          for p = 1, 9 do r[p] = trial[p] end
-          tx, ty, tz, sum = nx, ny, nz, c
-          accepted = true
-          lambda = lambda * 0.1
-          if lambda < 1e-12 then lambda = 1e-12 end
-          break
+          for i = 1, 9 do P[i] = Q[i] end
+          sum = c
         end
-        if converged then break end
+        break
       end
+    else
+      -- the trial raised the cost: back to the pose, with more damping (re-linearised)
       lambda = lambda * 10
       if lambda > 1e8 then break end
+      for i = 1, 9 do Q[i] = P[i] end
+      retry = true
     end
-    if converged or not accepted then break end
   end
-  return tx, ty, tz, sum, k
+  local ax, ay, az, bx, by, bz = P[1], P[2], P[3], P[4], P[5], P[6]
+  r[1], r[4], r[7], r[2], r[5], r[8] = ax, ay, az, bx, by, bz
+  r[3], r[6], r[9] = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+  return P[7], P[8], P[9], sum, k
 end
 
 --- The start of the other local minimum: the pose with the tag's normal reflected about the

@@ -264,12 +264,13 @@ function M.solve(q, X, Y, tol, max_iterations)
   while true do
     local g1 = A1 * X * X + B1 * Y * Y + C1 * X * Y + D1 * X + E1 * Y + F1
     local g2 = A2 * X * X + B2 * Y * Y + C2 * X * Y + D2 * X + E2 * Y + F2
-    if abs(g1) <= tol and abs(g2) <= tol then return X, Y, k end
-    if k >= budget or not (abs(g1) + abs(g2) < huge) then break end
+    if g1 <= tol and g1 >= -tol and g2 <= tol and g2 >= -tol then return X, Y, k end
+    if k >= budget then break end
     local g1x, g1y = 2 * A1 * X + C1 * Y + D1, 2 * B1 * Y + C1 * X + E1
     local g2x, g2y = 2 * A2 * X + C2 * Y + D2, 2 * B2 * Y + C2 * X + E2
     local n1, n2 = g1x * g1x + g1y * g1y, g2x * g2x + g2y * g2y
-    if not (n1 > 0 and n2 > 0) then break end -- vanishing gradient: the update is undefined
+    -- a vanishing or non-finite gradient: the update is undefined
+    if not (n1 > 0 and n2 > 0 and n1 + n2 < huge) then break end
     local s1, s2 = g1 / n1, g2 / n2
     X, Y = X - s1 * g1x - s2 * g2x, Y - s1 * g1y - s2 * g2y
     k = k + 1

@@ -27,6 +27,7 @@
 local rotation = require("tagpose.rotation")
 
 local sqrt, abs = math.sqrt, math.abs
+local huge = math.huge
 
 local M = {}
 
@@ -60,12 +61,6 @@ function M.camera_equations(m, out)
   return out
 end
 
--- twice the signed area of triangle (i, j, k), positive for the detection order
-local function orient(m, i, j, k)
-  local xi, yi = m[2 * i - 1], m[2 * i]
-  return (m[2 * k - 1] - xi) * (m[2 * j] - yi) - (m[2 * j - 1] - xi) * (m[2 * k] - yi)
-end
-
 --- Check that the corners can be a square seen from the front, and return the corner depths
 -- of the proximate solution (up to a common positive factor).
 --
@@ -79,7 +74,23 @@ end
 -- @treturn number λ4 = o123
 -- @return nil, string when the corners are not a usable square
 function M.shape(m)
-  local size = 0
+  local x1, y1, x2, y2, x3, y3, x4, y4 = m[1], m[2], m[3], m[4], m[5], m[6], m[7], m[8]
+  -- twice the signed areas of the four corner triangles, positive for the detection order
+  local o234 = (x4 - x2) * (y3 - y2) - (x3 - x2) * (y4 - y2)
+  local o134 = (x4 - x1) * (y3 - y1) - (x3 - x1) * (y4 - y1)
+  local o124 = (x4 - x1) * (y2 - y1) - (x2 - x1) * (y4 - y1)
+  local o123 = (x3 - x1) * (y2 - y1) - (x2 - x1) * (y3 - y1)
+  -- the size of the quadrilateral: its longer diagonal, squared
+  local d13 = (x3 - x1) * (x3 - x1) + (y3 - y1) * (y3 - y1)
+  local d24 = (x4 - x2) * (x4 - x2) + (y4 - y2) * (y4 - y2)
+  local size = d13 > d24 and d13 or d24
+  local limit = M.COLLINEAR * size
+  if o234 > limit and o134 > limit and o124 > limit and o123 > limit and size < huge then
+    return o234, o134, o124, o123
+  end
+  -- not a usable square: find out why
+  if not (size < huge) then return nil, "square: corners are not finite" end
+  size = 0
   for i = 1, 3 do
     for j = i + 1, 4 do
       local dx, dy = m[2 * j - 1] - m[2 * i - 1], m[2 * j] - m[2 * i]
@@ -87,24 +98,18 @@ function M.shape(m)
       if d > size then size = d end
     end
   end
-  if not (size < math.huge) then return nil, "square: corners are not finite" end
-  local limit = M.COINCIDENT * M.COINCIDENT * size
+  local near = M.COINCIDENT * M.COINCIDENT * size
   for i = 1, 3 do
     for j = i + 1, 4 do
       local dx, dy = m[2 * j - 1] - m[2 * i - 1], m[2 * j] - m[2 * i]
-      if not (dx * dx + dy * dy > limit) then
+      if not (dx * dx + dy * dy > near) then
         return nil, "square: corners " .. i .. " and " .. j .. " coincide"
       end
     end
   end
-  local o234, o134 = orient(m, 2, 3, 4), orient(m, 1, 3, 4)
-  local o124, o123 = orient(m, 1, 2, 4), orient(m, 1, 2, 3)
   limit = M.COLLINEAR * size
   if abs(o234) <= limit or abs(o134) <= limit or abs(o124) <= limit or abs(o123) <= limit then
     return nil, "square: corners are collinear"
-  end
-  if o234 > 0 and o134 > 0 and o124 > 0 and o123 > 0 then
-    return o234, o134, o124, o123
   end
   if o234 < 0 and o134 < 0 and o124 < 0 and o123 < 0 then
     return nil, "square: corners wind the wrong way round (mirrored order, or tag seen from behind)"

@@ -1,0 +1,97 @@
+-- Speed and memory of tagpose.solve on a data set, for the Lua it runs on.
+--
+--   lua5.4 examples/benchmark.lua [DATASET_DIR] [--method refined|seed] [--passes N]
+--
+-- DATASET_DIR is a directory in the format of shared/bench/dev (camera.lua, corners.csv);
+-- default: examples/data/approach (bundled). Prints µs per pose (median over passes, after a
+-- warm-up pass), bytes allocated per pose with the collector stopped (fresh result tables, and
+-- with options.into reusing one table), and the solveQuad and refinement iteration counts.
+
+package.path = "./src/?.lua;./src/?/init.lua;" .. package.path
+local tagpose = require("tagpose")
+local log = require("tagpose.log")
+
+local args = { dir = nil, method = nil, passes = 15 }
+do
+  local i = 1
+  while i <= #arg do
+    local a = arg[i]
+    if a == "--method" then
+      i = i + 1
+      args.method = arg[i]
+    elseif a == "--passes" then
+      i = i + 1
+      args.passes = tonumber(arg[i])
+    elseif a:sub(1, 2) == "--" then
+      io.stderr:write("unknown option " .. a .. "\n")
+      os.exit(2)
+    else
+      args.dir = a
+    end
+    i = i + 1
+  end
+end
+local dir = args.dir or "examples/data/approach"
+
+local camera = assert(log.read_camera(dir .. "/camera.lua"))
+local rows = assert(log.read_corners(dir .. "/corners.csv"))
+local n = #rows
+local corners = {}
+for i = 1, n do corners[i] = rows[i].corners end
+local tag_size = camera.tag_size
+local options = { method = args.method }
+
+-- one pass over every row; returns CPU seconds
+local function pass(opts)
+  local t0 = os.clock()
+  for i = 1, n do
+    tagpose.solve(corners[i], camera, tag_size, opts)
+  end
+  return os.clock() - t0
+end
+
+-- warm up (LuaJIT traces, caches), then the median of the passes
+pass(options)
+local times = {}
+for p = 1, args.passes do times[p] = pass(options) end
+table.sort(times)
+local median = times[math.floor((#times + 1) / 2)]
+
+-- bytes per solve with the collector stopped
+local function bytes(opts)
+  collectgarbage("collect")
+  collectgarbage("stop")
+  local before = collectgarbage("count")
+  for i = 1, n do
+    tagpose.solve(corners[i], camera, tag_size, opts)
+  end
+  local after = collectgarbage("count")
+  collectgarbage("restart")
+  return (after - before) * 1024 / n
+end
+local fresh = bytes(options)
+local into_options = { method = args.method, into = {} }
+bytes(into_options) -- warm-up: the table and its sub-tables come into being
+local reused = bytes(into_options)
+
+-- iteration counts
+local sq, rf, sq_max, rf_max, failed = 0, 0, 0, 0, 0
+for i = 1, n do
+  local pose = tagpose.solve(corners[i], camera, tag_size, options)
+  if pose then
+    sq = sq + pose.iterations
+    if pose.iterations > sq_max then sq_max = pose.iterations end
+    local k = pose.refine_iterations or 0
+    rf = rf + k
+    if k > rf_max then rf_max = k end
+  else
+    failed = failed + 1
+  end
+end
+local ok = n - failed
+
+local vm = rawget(_G, "jit") and rawget(_G, "jit").version or _VERSION
+print(("%s | %s | method %s | %d rows | %.2f µs/pose | %.0f B/pose | %.0f B/pose with into"
+  .. " | solveQuad mean %.2f max %d | refine mean %.2f max %d | %d failed"):format(
+  vm, dir:match("([^/]+)/*$"), args.method or "refined", n, median / n * 1e6, fresh, reused,
+  sq / ok, sq_max, rf / math.max(ok, 1), rf_max, failed))
