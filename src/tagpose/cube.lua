@@ -1,0 +1,174 @@
+--- The cube: its 24 rotations, its six faces, and the choice of one frame among its symmetric
+-- equivalents.
+--
+-- A block frame has its origin at the cube's centre and its axes along the face normals.
+-- Rotations are flat, row-major 3×3 arrays (see `tagpose.rotation`). The cube's rotation group
+-- is the 24 signed permutation matrices with determinant +1; when the faces cannot be told
+-- apart, the frames `R·G` for every `G` of the group are the same block.
+--
+-- The faces follow one fixed convention (that of the lab's blocks and of the dev data sets):
+-- face `f` with outward normal `n_f` carries a tag centred on it whose frame, written in the
+-- block frame, is `R_f = [tag_x tag_y tag_z]` (columns) with `tag_z = -n_f` (into the block),
+-- so `X_block = R_f·X_tag + (block_size/2)·n_f`:
+--
+-- * side faces `+x`, `-x`, `+y`, `-y`: `tag_y = -z` (the tag stands upright on an upright
+--   block), `tag_x = tag_y × tag_z`;
+-- * top `+z`: `tag_x = +x`, `tag_y = -y`; bottom `-z`: `tag_x = +x`, `tag_y = +y`.
+--
+-- Every `R_f` is one of the 24 rotations, so a tag's own rotation is itself a block frame.
+-- Conversely a tag whose rotation in the block frame is `G` (one of the 24) sits on the face
+-- with outward normal `-G·e_z`.
+-- @module tagpose.cube
+
+local M = {}
+
+--- The 24 rotations of the cube, flat row-major; `ROTATIONS[1]` is the identity. Constants:
+-- never write into them.
+M.ROTATIONS = {}
+
+do
+  -- every permutation (a, b, c) of the columns and every sign pattern, kept when det = +1
+  local perms = { { 1, 2, 3 }, { 1, 3, 2 }, { 2, 1, 3 }, { 2, 3, 1 }, { 3, 1, 2 }, { 3, 2, 1 } }
+  local parity = { 1, -1, -1, 1, 1, -1 }
+  local signs = { 1, -1 }
+  for p = 1, 6 do
+    for i = 1, 2 do
+      for j = 1, 2 do
+        for k = 1, 2 do
+          local s = { signs[i], signs[j], signs[k] }
+          if s[1] * s[2] * s[3] * parity[p] == 1 then
+            -- row r has the entry s[r] in column perms[p][r]
+            local g = { 0, 0, 0, 0, 0, 0, 0, 0, 0 }
+            for r = 1, 3 do g[(r - 1) * 3 + perms[p][r]] = s[r] end
+            M.ROTATIONS[#M.ROTATIONS + 1] = g
+          end
+        end
+      end
+    end
+  end
+end
+
+local ROTATIONS = M.ROTATIONS
+
+--- The faces, by name: `normal` (outward, block frame) and `rotation` (`R_f`, the tag frame in
+-- the block frame, flat). Constants.
+M.FACES = {
+  ["+x"] = { normal = { 1, 0, 0 }, rotation = { 0, 0, -1, 1, 0, 0, 0, -1, 0 } },
+  ["-x"] = { normal = { -1, 0, 0 }, rotation = { 0, 0, 1, -1, 0, 0, 0, -1, 0 } },
+  ["+y"] = { normal = { 0, 1, 0 }, rotation = { -1, 0, 0, 0, 0, -1, 0, -1, 0 } },
+  ["-y"] = { normal = { 0, -1, 0 }, rotation = { 1, 0, 0, 0, 0, 1, 0, -1, 0 } },
+  ["+z"] = { normal = { 0, 0, 1 }, rotation = { 1, 0, 0, 0, -1, 0, 0, 0, -1 } },
+  ["-z"] = { normal = { 0, 0, -1 }, rotation = { 1, 0, 0, 0, 1, 0, 0, 0, 1 } },
+}
+
+local NORMAL_NAMES = { "+x", "-x", "+y", "-y", "+z", "-z" }
+
+--- The cube rotation nearest to a 3×3 matrix (the one maximising `trace(Gᵀ·r)`).
+-- @tparam {number,...} r flat 3×3
+-- @treturn int index into `ROTATIONS`
+-- @treturn number the angle between `r` and that rotation, radians (when `r` is a rotation)
+function M.nearest(r)
+  local best, score = 1, -math.huge
+  for k = 1, 24 do
+    local g = ROTATIONS[k]
+    local s = 0
+    for i = 1, 9 do
+      local v = g[i]
+      if v ~= 0 then s = s + v * r[i] end
+    end
+    if s > score then best, score = k, s end
+  end
+  local c = 0.5 * (score - 1)
+  if c > 1 then c = 1 elseif c < -1 then c = -1 end
+  return best, math.acos(c)
+end
+
+--- Name of the face whose outward normal is `(nx, ny, nz)` (the nearest axis direction).
+-- @tparam number nx
+-- @tparam number ny
+-- @tparam number nz
+-- @treturn string `"+x"`, `"-x"`, `"+y"`, `"-y"`, `"+z"` or `"-z"`
+function M.face_name(nx, ny, nz)
+  local ax, ay, az = nx < 0 and -nx or nx, ny < 0 and -ny or ny, nz < 0 and -nz or nz
+  if ax >= ay and ax >= az then return NORMAL_NAMES[nx >= 0 and 1 or 2] end
+  if ay >= az then return NORMAL_NAMES[ny >= 0 and 3 or 4] end
+  return NORMAL_NAMES[nz >= 0 and 5 or 6]
+end
+
+--- The face a tag sits on, from its rotation `g` in the block frame: outward normal `-g·e_z`.
+-- @tparam {number,...} g flat 3×3 (a cube rotation, or near one)
+-- @treturn string face name
+function M.face_of(g)
+  return M.face_name(-g[3], -g[6], -g[9])
+end
+
+--- The symmetric equivalent `r·G` of a block rotation that is nearest to a reference rotation.
+-- @tparam {number,...} r flat block → camera rotation
+-- @tparam {number,...} ref flat reference rotation (e.g. the block's rotation last frame)
+-- @tparam {number,...} out array to fill (may be `r`; not `ref`)
+-- @treturn {number,...} out
+local relative = {} -- scratch: rᵀ·ref
+
+function M.closest(r, ref, out)
+  -- G = nearest(rᵀ·ref)
+  local m = relative
+  for i = 1, 3 do
+    for j = 1, 3 do
+      m[(i - 1) * 3 + j] = r[i] * ref[j] + r[3 + i] * ref[3 + j] + r[6 + i] * ref[6 + j]
+    end
+  end
+  local g = ROTATIONS[(M.nearest(m))]
+  local r1, r2, r3, r4, r5, r6, r7, r8, r9 = r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8], r[9]
+  for j = 1, 3 do
+    local a, b, c = g[j], g[3 + j], g[6 + j]
+    out[j] = r1 * a + r2 * b + r3 * c
+    out[3 + j] = r4 * a + r5 * b + r6 * c
+    out[6 + j] = r7 * a + r8 * b + r9 * c
+  end
+  return out
+end
+
+--- The canonical frame among a block rotation's 24 equivalents: block z is the face axis
+-- (signed column of `r`) closest to `up`, block x the remaining face axis closest to `ahead`,
+-- y = z × x. Ties go to the earlier column and to `+` before `-`.
+-- @tparam {number,...} r flat block → camera rotation
+-- @tparam number ux up, camera frame (need not be unit)
+-- @tparam number uy
+-- @tparam number uz
+-- @tparam number ax ahead, camera frame (e.g. the direction from the camera to the block)
+-- @tparam number ay
+-- @tparam number az
+-- @tparam {number,...} out array to fill (may be `r`)
+-- @treturn {number,...} out
+function M.canonical(r, ux, uy, uz, ax, ay, az, out)
+  local c1x, c1y, c1z = r[1], r[4], r[7]
+  local c2x, c2y, c2z = r[2], r[5], r[8]
+  local c3x, c3y, c3z = r[3], r[6], r[9]
+  local d1, d2, d3 = c1x * ux + c1y * uy + c1z * uz, c2x * ux + c2y * uy + c2z * uz,
+    c3x * ux + c3y * uy + c3z * uz
+  local a1, a2, a3 = d1 < 0 and -d1 or d1, d2 < 0 and -d2 or d2, d3 < 0 and -d3 or d3
+  -- z: the column most (anti-)parallel to up; p, q: the other two
+  local zx, zy, zz, s, px, py, pz, qx, qy, qz
+  if a1 >= a2 and a1 >= a3 then
+    zx, zy, zz, s = c1x, c1y, c1z, d1
+    px, py, pz, qx, qy, qz = c2x, c2y, c2z, c3x, c3y, c3z
+  elseif a2 >= a3 then
+    zx, zy, zz, s = c2x, c2y, c2z, d2
+    px, py, pz, qx, qy, qz = c1x, c1y, c1z, c3x, c3y, c3z
+  else
+    zx, zy, zz, s = c3x, c3y, c3z, d3
+    px, py, pz, qx, qy, qz = c1x, c1y, c1z, c2x, c2y, c2z
+  end
+  if s < 0 then zx, zy, zz = -zx, -zy, -zz end
+  local e1, e2 = px * ax + py * ay + pz * az, qx * ax + qy * ay + qz * az
+  local b1, b2 = e1 < 0 and -e1 or e1, e2 < 0 and -e2 or e2
+  local xx, xy, xz, t = px, py, pz, e1
+  if b2 > b1 then xx, xy, xz, t = qx, qy, qz, e2 end
+  if t < 0 then xx, xy, xz = -xx, -xy, -xz end
+  out[1], out[4], out[7] = xx, xy, xz
+  out[2], out[5], out[8] = zy * xz - zz * xy, zz * xx - zx * xz, zx * xy - zy * xx
+  out[3], out[6], out[9] = zx, zy, zz
+  return out
+end
+
+return M
