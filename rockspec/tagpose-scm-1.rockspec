@@ -26,6 +26,7 @@ build = {
   modules = {
     ["tagpose"] = "src/tagpose/init.lua",
     ["tagpose.args"] = "src/tagpose/args.lua",
+    ["tagpose.block"] = "src/tagpose/block.lua",
     ["tagpose.camera"] = "src/tagpose/camera.lua",
     ["tagpose.compat"] = "src/tagpose/compat.lua",
     ["tagpose.cube"] = "src/tagpose/cube.lua",
