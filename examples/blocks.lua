@@ -1,7 +1,7 @@
 -- Block poses from a corner log, and (given the truth) the block-level figures of PEERS.md.
 --
---   lua5.4 examples/blocks.lua DATASET_DIR [--up] [--track] [--out FILE] [--passes N]
---     [--peers PEERS.md]
+--   lua5.4 examples/blocks.lua DATASET_DIR [--up | --floor] [--track] [--out FILE]
+--     [--passes N] [--peers PEERS.md]
 --
 -- DATASET_DIR holds camera.lua (with tag_size and block_size), corners.csv (a corner log:
 -- frame,tag,u1,v1,...,u4,v4, every visible tag of a frame, any order) and optionally truth.csv
@@ -9,16 +9,19 @@
 -- and truth_tags.csv (frame,block,face,x,y,z,qw,qx,qy,qz, one row per corner row).
 --
 -- Without truth it prints the block poses as a CSV (frame,block,x,y,z,qw,qx,qy,qz,faces,error).
--- With truth it scores tagpose.block.solve twice, without and with an up vector, and prints
--- the table of PEERS.md beside the baseline's rows read from PEERS.md. --up scores only the
--- run with up, --track passes each frame's blocks to the next (frames numbered consecutively),
--- --out writes the block poses of the run (with up when --up is given).
+-- With truth it scores tagpose.block.solve three times - with nothing but the corners, with an
+-- up vector, with an up vector and the floor - and prints the table of PEERS.md beside the
+-- baseline's rows read from PEERS.md. --up (--floor) scores only the run with up (and the
+-- floor), --track passes each frame's blocks to the next (frames numbered consecutively),
+-- --out writes the block poses of the (last) run, --passes sets the timing passes (median).
 --
 -- The up vector comes from the truth, as a robot's IMU would give it: the camera looks forward
 -- and down by less than 45 degrees, and every block rests on a face, so in each frame the face
 -- axis of a true block that is nearest the camera's -y is gravity's; up is the mean of those
--- axes over the frame's true blocks. (Nothing of a block's own pose beyond the shared up
--- reaches the solver.)
+-- axes over the frame's true blocks. The floor, as a robot that knows its camera's height
+-- would give it: half a block below the lowest true centre along up (a stacked block whose
+-- support is hidden would put it a block too high, which the solver's levels absorb). Nothing
+-- else of the truth reaches the solver.
 --
 -- Scoring (as bench/score_blocks.py describes it in PEERS.md): per frame, predicted blocks are
 -- matched to true ones by the most matches, then the least total centre distance, within half
@@ -38,17 +41,19 @@ local sqrt, floor, deg, huge = math.sqrt, math.floor, math.deg, math.huge
 
 local function usage(msg)
   io.stderr:write((msg and msg .. "\n" or "") .. "usage: lua examples/blocks.lua DATASET_DIR "
-    .. "[--up] [--track] [--out FILE] [--passes N] [--peers PEERS.md]\n")
+    .. "[--up | --floor] [--track] [--out FILE] [--passes N] [--peers PEERS.md]\n")
   os.exit(2)
 end
 
-local opts = { passes = 3 }
+local opts = { passes = 5 }
 do
   local i = 1
   while i <= #arg do
     local a = arg[i]
     if a == "--up" then
       opts.up = true
+    elseif a == "--floor" then
+      opts.up, opts.floor = true, true
     elseif a == "--track" then
       opts.track = true
     elseif a == "--out" then
@@ -133,13 +138,21 @@ if exists(dir .. "/truth.csv") then
         ux, uy, uz = ux + bx, uy + by, uz + bz
       end
       local n = sqrt(ux * ux + uy * uy + uz * uz)
-      f.up = { x = ux / n, y = uy / n, z = uz / n }
+      ux, uy, uz = ux / n, uy / n, uz / n
+      f.up = { x = ux, y = uy, z = uz }
+      -- the floor: half a block below the lowest true centre
+      local low = huge
+      for _, t in ipairs(f.truth) do
+        local h = ux * t.x + uy * t.y + uz * t.z
+        if h < low then low = h end
+      end
+      f.floor = 0.5 * block_size - low
     end
   end
 end
 
 -- one run over every frame; returns the predictions per frame and µs per frame
-local function run(with_up)
+local function run(with_up, with_floor)
   local results, times = {}, {}
   for pass = 1, opts.passes do
     local previous, last_frame = nil, nil
@@ -147,6 +160,7 @@ local function run(with_up)
     for k, f in ipairs(frames) do
       local options = {}
       if with_up then options.up = f.up end
+      if with_floor then options.floor = f.floor end
       if opts.track and last_frame == f.frame - 1 then options.previous = previous end
       local blocks, err = tagpose.block.solve(f.detections, camera, tag_size, block_size, options)
       if pass == 1 then results[k] = blocks or {} end
@@ -389,11 +403,18 @@ local header = "| solver | blocks seen with | true | recall % | precision % | mi
   .. "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
 
 local lines = {}
-local runs = opts.up and { true } or { false, true }
-for _, with_up in ipairs(runs) do
-  local results, us = run(with_up)
+local runs = { { false, false }, { true, false }, { true, true } }
+if opts.floor then
+  runs = { { true, true } }
+elseif opts.up then
+  runs = { { true, false } }
+end
+for _, mode in ipairs(runs) do
+  local with_up, with_floor = mode[1], mode[2]
+  local results, us = run(with_up, with_floor)
   if opts.out then write_poses(opts.out, results) end
-  local name = "tagpose.block" .. (with_up and " (up)" or "") .. (opts.track and " (track)" or "")
+  local name = "tagpose.block" .. (with_floor and " (up, floor)" or with_up and " (up)" or "")
+    .. (opts.track and " (track)" or "")
   for _, l in ipairs(rows_of(name, score(results), us)) do lines[#lines + 1] = l end
 end
 for _, l in ipairs(peer_rows()) do lines[#lines + 1] = l end

@@ -243,6 +243,38 @@ describe("tagpose.block", function()
     end)
   end)
 
+  describe("options.floor", function()
+    it("holds a resting block's centre at its level, which fixes a lone tag's depth", function()
+      local rng = geometry.rng(43)
+      local with_up, with_floor = {}, {}
+      for n = 1, 60 do
+        local pitch, height = rad(rng.uniform(20, 40)), rng.uniform(0.06, 0.22)
+        local cam_r, cam_c, up = robot_camera(pitch, height)
+        local stacked = rng.uniform() < 0.3
+        local centre = { rng.uniform(0.15, 0.4), rng.uniform(-0.05, 0.05),
+          (stacked and 1.5 or 0.5) * BLOCK }
+        local r, t, tags = view(cam_r, cam_c, centre, yaw(rng.uniform(0, 6.3)),
+          { rng = rng, sigma = 0.3 })
+        local one = { tags[1] }
+        local a = solve(one, { up = up })[1]
+        local b = solve(one, { up = up, floor = height })[1]
+        with_up[n] = sqrt((a.position.x - t[1]) ^ 2 + (a.position.y - t[2]) ^ 2
+          + (a.position.z - t[3]) ^ 2)
+        with_floor[n] = sqrt((b.position.x - t[1]) ^ 2 + (b.position.y - t[2]) ^ 2
+          + (b.position.z - t[3]) ^ 2)
+        assert.is_true(symmetric_error(r, b.rotation) < 10)
+        -- its height above the floor is its level's
+        local h = b.position.x * up[1] + b.position.y * up[2] + b.position.z * up[3] + height
+        assert.near((stacked and 1.5 or 0.5) * BLOCK, h, 0.004)
+      end
+      table.sort(with_up)
+      table.sort(with_floor)
+      assert.is_true(with_floor[30] < 0.85 * with_up[30],
+        ("median centre errors: %.3g with up, %.3g with the floor"):format(with_up[30],
+          with_floor[30]))
+    end)
+  end)
+
   describe("grouping", function()
     it("keeps two touching cubes two blocks", function()
       local rng = geometry.rng(51)
@@ -551,6 +583,8 @@ describe("tagpose.block", function()
         "bad argument #5 to 'solve' (options table expected, got number)" },
       { function() tagpose.block.solve(good, camera, TAG, BLOCK, { up = { 0, 0, 0 } }) end,
         "bad argument #5 to 'solve' (options.up: non-zero vector expected)" },
+      { function() tagpose.block.solve(good, camera, TAG, BLOCK, { floor = 0.1 }) end,
+        "bad argument #5 to 'solve' (options.floor: needs options.up)" },
       { function() tagpose.block.solve(good, camera, TAG, BLOCK, { faces = { [1] = "top" } }) end,
         "bad argument #5 to 'solve' (options.faces[1]: face '+x', '-x', '+y', '-y', '+z' or "
           .. "'-z' expected, got string top)" },

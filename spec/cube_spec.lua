@@ -79,6 +79,26 @@ describe("tagpose.cube", function()
     end)
   end)
 
+  describe("nearest() on any matrix", function()
+    it("maximises trace(Gᵀ·r) over the 24, as a search of all of them does", function()
+      local rng = geometry.rng(6)
+      for _ = 1, 500 do
+        local r = {}
+        for i = 1, 9 do r[i] = rng.normal() end
+        local score = -math.huge
+        for _, g in ipairs(cube.ROTATIONS) do
+          local s = 0
+          for i = 1, 9 do s = s + g[i] * r[i] end
+          if s > score then score = s end
+        end
+        local k = cube.nearest(r)
+        local s = 0
+        for i = 1, 9 do s = s + cube.ROTATIONS[k][i] * r[i] end
+        assert.near(score, s, 1e-12)
+      end
+    end)
+  end)
+
   describe("closest()", function()
     it("gives the symmetric equivalent nearest a reference", function()
       local rng = geometry.rng(4)

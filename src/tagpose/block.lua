@@ -25,7 +25,9 @@
 --    ambiguity: a block seen with two or more faces has one pose;
 -- 4. a block seen with one face keeps both candidates: the one chosen is the better-fitting,
 --    unless the previous frame's block (tracking) or `options.up` (an upright or tipped block
---    has a face axis along gravity) says otherwise; the other is `alternative`;
+--    has a face axis along gravity) says otherwise; the other is `alternative`. With `up`,
+--    every fit holds the block's nearest face axis along it (`up_tolerance`), and with
+--    `options.floor` a resting block's centre at its height (`floor_tolerance`);
 -- 5. canonical orientation (when faces are indistinguishable): block z is the face axis
 --    closest to up (`options.up`, default the camera's -y, `(0, -1, 0)`), block x the
 --    remaining face axis closest to the direction from the camera to the block's centre,
@@ -65,6 +67,12 @@ M.ALPHA = 3e-4
 M.NOISE_FLOOR = 0.01
 --- Default standard deviation (radians) of a block's tilt from `options.up`.
 M.UP_TOLERANCE = rad(2)
+--- Default standard deviation of a resting block's centre height from its level above
+-- `options.floor` (× block_size).
+M.FLOOR_TOLERANCE = 0.02
+--- A block whose centre is further than this from every level (× block_size) is taken not to
+-- rest on the floor or on a block: the floor prior is not applied to it (its cost is capped).
+M.FLOOR_GATE = 0.3
 --- Tracking gate: a block is the previous frame's block when their centres are closer than
 -- this (× block_size).
 M.TRACK_GATE = 0.75
@@ -73,10 +81,12 @@ M.TRACK_GATE = 0.75
 M.TRACK_ANGLE = rad(20)
 --- ... and its squared error exceeds the better candidate's by less than `TRACK_K·σ²`.
 M.TRACK_K = 25
+--- A hypothesis whose start is within this angle (radians, modulo the symmetries) of the
+-- result of a fitted one over the same tags is not fitted again.
+M.TWIN_ANGLE = rad(10)
 --- Bound on the linearisations of one joint fit.
 M.MAX_ITERATIONS = 20
 
-local CX, CY = { -1, 1, 1, -1 }, { 1, 1, -1, -1 }
 local IDENTITY = ROTATIONS[1]
 
 -- scratch, reused by every call and never handed out
@@ -89,40 +99,57 @@ local function arg_error(n, message)
   args.raise(n, "solve", message, 3)
 end
 
+-- (3×3 algebra is unrolled: LuaJIT makes a trace of every hot loop, and a frame's many tiny
+-- loops would fill its trace cache)
+
 -- a * b into out (flat 3×3; out may not be a or b)
 local function mul(a, b, out)
-  for i = 0, 6, 3 do
-    local a1, a2, a3 = a[i + 1], a[i + 2], a[i + 3]
-    out[i + 1] = a1 * b[1] + a2 * b[4] + a3 * b[7]
-    out[i + 2] = a1 * b[2] + a2 * b[5] + a3 * b[8]
-    out[i + 3] = a1 * b[3] + a2 * b[6] + a3 * b[9]
-  end
+  local b1, b2, b3, b4, b5, b6, b7, b8, b9 = b[1], b[2], b[3], b[4], b[5], b[6], b[7], b[8], b[9]
+  local a1, a2, a3 = a[1], a[2], a[3]
+  out[1], out[2], out[3] = a1 * b1 + a2 * b4 + a3 * b7, a1 * b2 + a2 * b5 + a3 * b8,
+    a1 * b3 + a2 * b6 + a3 * b9
+  a1, a2, a3 = a[4], a[5], a[6]
+  out[4], out[5], out[6] = a1 * b1 + a2 * b4 + a3 * b7, a1 * b2 + a2 * b5 + a3 * b8,
+    a1 * b3 + a2 * b6 + a3 * b9
+  a1, a2, a3 = a[7], a[8], a[9]
+  out[7], out[8], out[9] = a1 * b1 + a2 * b4 + a3 * b7, a1 * b2 + a2 * b5 + a3 * b8,
+    a1 * b3 + a2 * b6 + a3 * b9
   return out
 end
 
 -- a * bᵀ into out
 local function mul_t(a, b, out)
-  for i = 0, 6, 3 do
-    local a1, a2, a3 = a[i + 1], a[i + 2], a[i + 3]
-    out[i + 1] = a1 * b[1] + a2 * b[2] + a3 * b[3]
-    out[i + 2] = a1 * b[4] + a2 * b[5] + a3 * b[6]
-    out[i + 3] = a1 * b[7] + a2 * b[8] + a3 * b[9]
-  end
+  local b1, b2, b3, b4, b5, b6, b7, b8, b9 = b[1], b[2], b[3], b[4], b[5], b[6], b[7], b[8], b[9]
+  local a1, a2, a3 = a[1], a[2], a[3]
+  out[1], out[2], out[3] = a1 * b1 + a2 * b2 + a3 * b3, a1 * b4 + a2 * b5 + a3 * b6,
+    a1 * b7 + a2 * b8 + a3 * b9
+  a1, a2, a3 = a[4], a[5], a[6]
+  out[4], out[5], out[6] = a1 * b1 + a2 * b2 + a3 * b3, a1 * b4 + a2 * b5 + a3 * b6,
+    a1 * b7 + a2 * b8 + a3 * b9
+  a1, a2, a3 = a[7], a[8], a[9]
+  out[7], out[8], out[9] = a1 * b1 + a2 * b2 + a3 * b3, a1 * b4 + a2 * b5 + a3 * b6,
+    a1 * b7 + a2 * b8 + a3 * b9
   return out
 end
 
 -- aᵀ * b into out
 local function t_mul(a, b, out)
-  for i = 1, 3 do
-    for j = 1, 3 do
-      out[(i - 1) * 3 + j] = a[i] * b[j] + a[3 + i] * b[3 + j] + a[6 + i] * b[6 + j]
-    end
-  end
+  local b1, b2, b3, b4, b5, b6, b7, b8, b9 = b[1], b[2], b[3], b[4], b[5], b[6], b[7], b[8], b[9]
+  local a1, a2, a3 = a[1], a[4], a[7]
+  out[1], out[2], out[3] = a1 * b1 + a2 * b4 + a3 * b7, a1 * b2 + a2 * b5 + a3 * b8,
+    a1 * b3 + a2 * b6 + a3 * b9
+  a1, a2, a3 = a[2], a[5], a[8]
+  out[4], out[5], out[6] = a1 * b1 + a2 * b4 + a3 * b7, a1 * b2 + a2 * b5 + a3 * b8,
+    a1 * b3 + a2 * b6 + a3 * b9
+  a1, a2, a3 = a[3], a[6], a[9]
+  out[7], out[8], out[9] = a1 * b1 + a2 * b4 + a3 * b7, a1 * b2 + a2 * b5 + a3 * b8,
+    a1 * b3 + a2 * b6 + a3 * b9
   return out
 end
 
 local function copy9(src, dst)
-  for i = 1, 9 do dst[i] = src[i] end
+  dst[1], dst[2], dst[3], dst[4], dst[5], dst[6], dst[7], dst[8], dst[9] = src[1], src[2],
+    src[3], src[4], src[5], src[6], src[7], src[8], src[9]
   return dst
 end
 
@@ -244,7 +271,7 @@ end
 
 local function read_options(options)
   local o = { faces = nil, up = nil, previous = nil, up_tolerance = M.UP_TOLERANCE,
-    max_iterations = M.MAX_ITERATIONS }
+    floor = nil, floor_tolerance = nil, max_iterations = M.MAX_ITERATIONS }
   if options == nil then return o end
   if type(options) ~= "table" then return nil, "options table expected, got " .. type(options) end
   local problem
@@ -270,6 +297,21 @@ local function read_options(options)
       return nil, "options.up_tolerance: positive number expected, got " .. describe(tol)
     end
     o.up_tolerance = tol
+  end
+  local floor = options.floor
+  if floor ~= nil then
+    if not is_finite(floor) then
+      return nil, "options.floor: finite number expected, got " .. describe(floor)
+    end
+    if not o.up then return nil, "options.floor: needs options.up" end
+    o.floor = floor
+  end
+  tol = options.floor_tolerance
+  if tol ~= nil then
+    if not is_positive(tol) then
+      return nil, "options.floor_tolerance: positive number expected, got " .. describe(tol)
+    end
+    o.floor_tolerance = tol
   end
   local it = options.max_iterations
   if it ~= nil then
@@ -325,14 +367,16 @@ end
 -- The four corners of a tag on the face G (tag → block rotation) into `points` from point
 -- `first`: X = G·c + (block_size/2)·n, n = -G·e_z.
 local function face_points(g, half, half_block, first)
+  -- the face centre n·B/2 and the tag's half axes x·h, y·h
   local nx, ny, nz = -g[3] * half_block, -g[6] * half_block, -g[9] * half_block
-  for k = 1, 4 do
-    local a, b = CX[k] * half, CY[k] * half
-    local o = 3 * (first + k - 1)
-    points[o - 2] = g[1] * a + g[2] * b + nx
-    points[o - 1] = g[4] * a + g[5] * b + ny
-    points[o] = g[7] * a + g[8] * b + nz
-  end
+  local xx, xy, xz, yx, yy, yz = g[1] * half, g[4] * half, g[7] * half, g[2] * half,
+    g[5] * half, g[8] * half
+  local o = 3 * first - 3
+  -- c1 = (-h, +h), c2 = (+h, +h), c3 = (+h, -h), c4 = (-h, -h)
+  points[o + 1], points[o + 2], points[o + 3] = nx - xx + yx, ny - xy + yy, nz - xz + yz
+  points[o + 4], points[o + 5], points[o + 6] = nx + xx + yx, ny + xy + yy, nz + xz + yz
+  points[o + 7], points[o + 8], points[o + 9] = nx + xx - yx, ny + xy - yy, nz + xz - yz
+  points[o + 10], points[o + 11], points[o + 12] = nx - xx - yx, ny - xy - yy, nz - xz - yz
 end
 
 ---------------------------------------------------------------------------------------------
@@ -342,24 +386,50 @@ end
 local function load_members(h, dets, half, half_block)
   for m = 1, #h.members do
     local d = dets[h.members[m]]
-    local px = d.px
-    for k = 1, 8 do pixels[8 * (m - 1) + k] = px[k] end
+    local px, o = d.px, 8 * m - 8
+    pixels[o + 1], pixels[o + 2], pixels[o + 3], pixels[o + 4] = px[1], px[2], px[3], px[4]
+    pixels[o + 5], pixels[o + 6], pixels[o + 7], pixels[o + 8] = px[5], px[6], px[7], px[8]
     face_points(h.g[m], half, half_block, 4 * (m - 1) + 1)
   end
 end
 
--- The up prior for a block rotation r: the signed block axis closest to up, weight w.
-local function set_prior(r, up, w)
-  if not up then return nil end
-  local best, axis, sign = -1, 1, 1
-  for k = 1, 3 do
-    local d = r[k] * up[1] + r[3 + k] * up[2] + r[6 + k] * up[3]
-    if abs(d) > best then best, axis, sign = abs(d), k, d < 0 and -1 or 1 end
-  end
+-- The priors for a block pose: the signed block axis closest to up held along it (with
+-- options.up), and, when `plane` is set and options.floor is given, the centre's height held at
+-- the nearest resting level. Returns the prior (or nil) and the capped cost of a level beyond
+-- the gate.
+local function set_prior(r, x, y, z, ctx, plane)
+  local up = ctx.up
+  if not up then return nil, 0 end
+  -- the block axis (column of r) most (anti-)parallel to up
+  local ux, uy, uz = up[1], up[2], up[3]
+  local d1 = r[1] * ux + r[4] * uy + r[7] * uz
+  local d2 = r[2] * ux + r[5] * uy + r[8] * uz
+  local d3 = r[3] * ux + r[6] * uy + r[9] * uz
   prior[1], prior[2], prior[3] = 0, 0, 0
-  prior[axis] = sign
-  prior[4], prior[5], prior[6], prior[7] = up[1], up[2], up[3], w
-  return prior
+  if abs(d1) >= abs(d2) and abs(d1) >= abs(d3) then
+    prior[1] = d1 < 0 and -1 or 1
+  elseif abs(d2) >= abs(d3) then
+    prior[2] = d2 < 0 and -1 or 1
+  else
+    prior[3] = d3 < 0 and -1 or 1
+  end
+  prior[4], prior[5], prior[6], prior[7] = up[1], up[2], up[3], ctx.prior_w
+  prior[8], prior[9], prior[10], prior[11], prior[12] = up[1], up[2], up[3], 0, 0
+  local penalty = 0
+  if plane and ctx.floor then
+    -- resting levels: up·c = -floor + B/2 + k·B
+    local B = ctx.block_size
+    local h = up[1] * x + up[2] * y + up[3] * z
+    local base = -ctx.floor + 0.5 * B
+    local level = base + B * math.floor((h - base) / B + 0.5)
+    local gate = M.FLOOR_GATE * B
+    if abs(h - level) <= gate then
+      prior[11], prior[12] = level, ctx.floor_w
+    else
+      penalty = (ctx.floor_w * gate) ^ 2
+    end
+  end
+  return prior, penalty
 end
 
 -- Is the joint fit of k tags consistent with their single fits? Its excess `total` (px²)
@@ -395,7 +465,7 @@ local function fit_hypothesis(h, dets, camera, half, half_block, ctx)
   for _ = 1, 8 do
     local n = #h.members
     load_members(h, dets, half, half_block)
-    local pr = set_prior(fit_r, ctx.up, ctx.prior_w)
+    local pr = set_prior(fit_r, tx, ty, tz, ctx, false)
     local cost
     tx, ty, tz, cost = rigid.fit(camera, points, pixels, 4 * n, fit_r, tx, ty, tz,
       ctx.max_iterations, pr)
@@ -412,6 +482,24 @@ local function fit_hypothesis(h, dets, camera, half, half_block, ctx)
       if excess > worst then worst, worst_m, worst_sse = excess, m, sse end
     end
     if n == 1 or consistent(total, n, ctx) then
+      if ctx.floor then
+        -- a resting block: its centre at the level nearest the fit's
+        local level, penalty = set_prior(fit_r, tx, ty, tz, ctx, true)
+        if level[12] > 0 then
+          local c
+          tx, ty, tz, c = rigid.fit(camera, points, pixels, 4 * n, fit_r, tx, ty, tz,
+            ctx.max_iterations, level)
+          if not (c < huge) then
+            h.cost = huge
+            return h
+          end
+          cost, sum = c, 0
+          for m = 1, n do
+            sum = sum + rigid.cost(camera, points, pixels, 4 * m - 3, 4 * m, fit_r, tx, ty, tz)
+          end
+        end
+        cost = cost + penalty
+      end
       h.r = copy9(fit_r, h.r or {})
       h.x, h.y, h.z = tx, ty, tz
       h.sse, h.cost = sum, cost
@@ -474,6 +562,43 @@ local function hypothesis(s, a, dets, free, block_size, faces)
     end
   end
   return h
+end
+
+-- Are the detections of a list all free?
+local function all_free(list, free)
+  for i = 1, #list do
+    if not free[list[i]] then return false end
+  end
+  return true
+end
+
+-- An already fitted hypothesis over the same detections whose result is where this one's start
+-- is (its fit would only repeat that one), or nil.
+local function twin_of(h, fitted, faces)
+  local n = #h.gated
+  for i = 1, #fitted do
+    local f = fitted[i]
+    if #f.gated == n and f.cost < huge then
+      local same = true
+      for k = 1, n do
+        local found = false
+        for m = 1, n do
+          if f.gated[m] == h.gated[k] then found = true end
+        end
+        if not found then same = false end
+      end
+      if same then
+        local _, angle
+        if faces then
+          angle = rotation.angle(f.r, h.start.r)
+        else
+          _, angle = cube.nearest(t_mul(f.r, h.start.r, work))
+        end
+        if angle < M.TWIN_ANGLE then return f end
+      end
+    end
+  end
+  return nil
 end
 
 -- Is hypothesis a better than b: more faces, then the lower error.
@@ -574,6 +699,13 @@ local function finite_block(r, x, y, z, err)
   return s == s and s > -huge and s < huge
 end
 
+-- orders for table.sort (module-level: a closure made per call stops LuaJIT's compiler)
+local function first_smaller(a, b) return a[1] < b[1] end
+local function nearer(a, b)
+  return a.h.x ^ 2 + a.h.y ^ 2 + a.h.z ^ 2 < b.h.x ^ 2 + b.h.y ^ 2 + b.h.z ^ 2
+end
+local function smaller_id(a, b) return a.id < b.id end
+
 -- Match the blocks to the previous frame's (least total centre distance within the gate, by
 -- exhaustive search for small counts, greedily beyond) and set their ids.
 local function assign_ids(blocks, previous, next_id, gate)
@@ -588,7 +720,7 @@ local function assign_ids(blocks, previous, next_id, gate)
       if d < gate then pairs_list[#pairs_list + 1] = { d, i, j } end
     end
   end
-  table.sort(pairs_list, function(a, b) return a[1] < b[1] end)
+  table.sort(pairs_list, first_smaller)
   local match = {}
   for _, pr in ipairs(pairs_list) do
     local i, j = pr[2], pr[3]
@@ -611,6 +743,14 @@ end
 --     decides between the two poses of a block seen with one face and steadies every fit; it
 --     also sets the canonical z. Default: none (and `(0, -1, 0)` for the canonical choice);
 --   - `up_tolerance`: standard deviation of a block's tilt from `up`, radians (default 2°);
+--   - `floor` (needs `up`): the height of the camera's centre above the floor the blocks rest
+--     on, when known: a block resting on the floor or on other blocks has its centre at
+--     `block_size/2 + k·block_size` above it, which fixes the depth a single tag measures
+--     poorly. It helps only when known to about a millimetre: a height error moves a centre
+--     along the line of sight by the error over the sine of the ray's angle below horizontal.
+--     A block further than 0.3 block from every level is left free;
+--   - `floor_tolerance`: standard deviation of a resting centre's height from its level, in
+--     length units (default `block_size / 50`);
 --   - `previous`: the blocks returned for the previous frame: a block found again keeps its
 --     `id` and the symmetric frame nearest its previous rotation, and a one-face block keeps
 --     the candidate that continues a decided orientation;
@@ -695,6 +835,7 @@ function M.solve(detections, camera, tag_size, block_size, options)
   ctx.sigma2 = sigma2
   ctx.n, ctx.frame_sse = #dets, 2 * noise
   ctx.prior_w = ctx.up and sqrt(sigma2) / ctx.up_tolerance or 0
+  ctx.floor_w = sqrt(sigma2) / (ctx.floor_tolerance or M.FLOOR_TOLERANCE * block_size)
   ctx.block_size = block_size
   ctx.default_up = { 0, -1, 0 }
 
@@ -703,16 +844,32 @@ function M.solve(detections, camera, tag_size, block_size, options)
   for s = 1, #dets do free[s] = true end
   local found = {}
   local remaining = #dets
+  -- hypotheses by seed (kept while all their tags are free) and those fitted this frame
+  local cache, fitted = {}, {}
   while remaining > 0 do
     local best = nil
     for s = 1, #dets do
       if free[s] then
         for a = 1, #dets[s].cands do
-          local h = hypothesis(s, a, dets, free, block_size, faces)
-          if #h.members > 1 then
-            fit_hypothesis(h, dets, camera, half, half_block, ctx)
-            if h.cost < huge and #h.members > 1 and better(h, best) then best = h end
+          local key = 2 * s + a
+          local h = cache[key]
+          if not (h and all_free(h.gated, free)) then
+            h = hypothesis(s, a, dets, free, block_size, faces)
+            local gated = {}
+            for m = 1, #h.members do gated[m] = h.members[m] end
+            h.gated = gated
+            if #gated > 1 then
+              local twin = twin_of(h, fitted, faces)
+              if twin then
+                h = twin
+              else
+                fit_hypothesis(h, dets, camera, half, half_block, ctx)
+                fitted[#fitted + 1] = h
+              end
+            end
+            cache[key] = h
           end
+          if #h.members > 1 and h.cost < huge and better(h, best) then best = h end
         end
       end
     end
@@ -774,9 +931,7 @@ function M.solve(detections, camera, tag_size, block_size, options)
     end
     match = assign_ids(pseudo, ctx.previous, next_id, M.TRACK_GATE * block_size)
   else
-    table.sort(blocks, function(a, b)
-      return a.h.x ^ 2 + a.h.y ^ 2 + a.h.z ^ 2 < b.h.x ^ 2 + b.h.y ^ 2 + b.h.z ^ 2
-    end)
+    table.sort(blocks, nearer)
   end
   local out = {}
   for i, f in ipairs(blocks) do
@@ -810,7 +965,7 @@ function M.solve(detections, camera, tag_size, block_size, options)
     out[i] = b
   end
   if ctx.previous then
-    table.sort(out, function(a, b) return a.id < b.id end)
+    table.sort(out, smaller_id)
   end
   out.skipped = skipped
   out.next_id = next_id

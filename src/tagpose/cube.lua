@@ -20,6 +20,8 @@
 -- with outward normal `-G·e_z`.
 -- @module tagpose.cube
 
+local abs, min = math.abs, math.min
+
 local M = {}
 
 --- The 24 rotations of the cube, flat row-major; `ROTATIONS[1]` is the identity. Constants:
@@ -63,24 +65,63 @@ M.FACES = {
 
 local NORMAL_NAMES = { "+x", "-x", "+y", "-y", "+z", "-z" }
 
+-- The 24 rotations by column permutation and signs: for a permutation p (row i has its entry in
+-- column p[i]) and the signs of rows 1, 2, 3 as bits 1, 2, 4 (set = negative), the index into
+-- ROTATIONS.
+local PERMUTATIONS = { { 1, 2, 3 }, { 2, 3, 1 }, { 3, 1, 2 }, { 1, 3, 2 }, { 3, 2, 1 },
+  { 2, 1, 3 } }
+local PARITY = { 1, 1, 1, -1, -1, -1 }
+local BY_PATTERN = {}
+for k, g in ipairs(ROTATIONS) do
+  for p = 1, 6 do
+    local perm = PERMUTATIONS[p]
+    local bits, match = 0, true
+    for i = 1, 3 do
+      local v = g[(i - 1) * 3 + perm[i]]
+      if v == 0 then match = false end
+      if v < 0 then bits = bits + (i == 1 and 1 or i == 2 and 2 or 4) end
+    end
+    if match then BY_PATTERN[(p - 1) * 8 + bits + 1] = k end
+  end
+end
+
 --- The cube rotation nearest to a 3×3 matrix (the one maximising `trace(Gᵀ·r)`).
+-- For each column permutation the best signs are those of the entries it picks, with the
+-- smallest entry's sign turned when they would make a reflection.
 -- @tparam {number,...} r flat 3×3
 -- @treturn int index into `ROTATIONS`
 -- @treturn number the angle between `r` and that rotation, radians (when `r` is a rotation)
 function M.nearest(r)
+  -- the best permutation (few live values: LuaJIT compiles this loop)
   local best, score = 1, -math.huge
-  for k = 1, 24 do
-    local g = ROTATIONS[k]
-    local s = 0
-    for i = 1, 9 do
-      local v = g[i]
-      if v ~= 0 then s = s + v * r[i] end
+  for p = 1, 6 do
+    local perm = PERMUTATIONS[p]
+    local a1, a2, a3 = r[perm[1]], r[3 + perm[2]], r[6 + perm[3]]
+    local s = abs(a1) + abs(a2) + abs(a3)
+    -- signs that make a reflection: the smallest entry's sign is turned
+    if (a1 * a2 * a3 < 0) == (PARITY[p] == 1) then
+      s = s - 2 * min(abs(a1), abs(a2), abs(a3))
     end
-    if s > score then best, score = k, s end
+    if s > score then best, score = p, s end
   end
+  -- its signs
+  local perm = PERMUTATIONS[best]
+  local a1, a2, a3 = r[perm[1]], r[3 + perm[2]], r[6 + perm[3]]
+  local n1, n2, n3 = a1 < 0, a2 < 0, a3 < 0
+  if (a1 * a2 * a3 < 0) == (PARITY[best] == 1) then
+    local b1, b2, b3 = abs(a1), abs(a2), abs(a3)
+    if b1 <= b2 and b1 <= b3 then
+      n1 = not n1
+    elseif b2 <= b3 then
+      n2 = not n2
+    else
+      n3 = not n3
+    end
+  end
+  local bits = (n1 and 1 or 0) + (n2 and 2 or 0) + (n3 and 4 or 0)
   local c = 0.5 * (score - 1)
   if c > 1 then c = 1 elseif c < -1 then c = -1 end
-  return best, math.acos(c)
+  return BY_PATTERN[(best - 1) * 8 + bits + 1], math.acos(c)
 end
 
 --- Name of the face whose outward normal is `(nx, ny, nz)` (the nearest axis direction).
@@ -141,30 +182,27 @@ end
 -- @tparam {number,...} out array to fill (may be `r`)
 -- @treturn {number,...} out
 function M.canonical(r, ux, uy, uz, ax, ay, az, out)
-  local c1x, c1y, c1z = r[1], r[4], r[7]
-  local c2x, c2y, c2z = r[2], r[5], r[8]
-  local c3x, c3y, c3z = r[3], r[6], r[9]
-  local d1, d2, d3 = c1x * ux + c1y * uy + c1z * uz, c2x * ux + c2y * uy + c2z * uz,
-    c3x * ux + c3y * uy + c3z * uz
-  local a1, a2, a3 = d1 < 0 and -d1 or d1, d2 < 0 and -d2 or d2, d3 < 0 and -d3 or d3
-  -- z: the column most (anti-)parallel to up; p, q: the other two
-  local zx, zy, zz, s, px, py, pz, qx, qy, qz
-  if a1 >= a2 and a1 >= a3 then
-    zx, zy, zz, s = c1x, c1y, c1z, d1
-    px, py, pz, qx, qy, qz = c2x, c2y, c2z, c3x, c3y, c3z
-  elseif a2 >= a3 then
-    zx, zy, zz, s = c2x, c2y, c2z, d2
-    px, py, pz, qx, qy, qz = c1x, c1y, c1z, c3x, c3y, c3z
-  else
-    zx, zy, zz, s = c3x, c3y, c3z, d3
-    px, py, pz, qx, qy, qz = c1x, c1y, c1z, c2x, c2y, c2z
+  -- z: the column most (anti-)parallel to up (unrolled: see `nearest`)
+  local d1 = r[1] * ux + r[4] * uy + r[7] * uz
+  local d2 = r[2] * ux + r[5] * uy + r[8] * uz
+  local d3 = r[3] * ux + r[6] * uy + r[9] * uz
+  local kz, sz = 3, d3
+  if abs(d1) >= abs(d2) and abs(d1) >= abs(d3) then
+    kz, sz = 1, d1
+  elseif abs(d2) >= abs(d3) then
+    kz, sz = 2, d2
   end
-  if s < 0 then zx, zy, zz = -zx, -zy, -zz end
-  local e1, e2 = px * ax + py * ay + pz * az, qx * ax + qy * ay + qz * az
-  local b1, b2 = e1 < 0 and -e1 or e1, e2 < 0 and -e2 or e2
-  local xx, xy, xz, t = px, py, pz, e1
-  if b2 > b1 then xx, xy, xz, t = qx, qy, qz, e2 end
-  if t < 0 then xx, xy, xz = -xx, -xy, -xz end
+  sz = sz < 0 and -1 or 1
+  -- x: of the other two, the column most (anti-)parallel to ahead
+  local kp, kq = 2, 3
+  if kz == 2 then kp = 1 elseif kz == 3 then kp, kq = 1, 2 end
+  local e1 = r[kp] * ax + r[3 + kp] * ay + r[6 + kp] * az
+  local e2 = r[kq] * ax + r[3 + kq] * ay + r[6 + kq] * az
+  local kx, sx = kp, e1
+  if abs(e2) > abs(e1) then kx, sx = kq, e2 end
+  sx = sx < 0 and -1 or 1
+  local zx, zy, zz = sz * r[kz], sz * r[3 + kz], sz * r[6 + kz]
+  local xx, xy, xz = sx * r[kx], sx * r[3 + kx], sx * r[6 + kx]
   out[1], out[4], out[7] = xx, xy, xz
   out[2], out[5], out[8] = zy * xz - zz * xy, zz * xx - zx * xz, zx * xy - zy * xx
   out[3], out[6], out[9] = zx, zy, zz

@@ -3,8 +3,10 @@
 --
 -- It minimises the sum of squared pixel distances between the observed points and the
 -- projections (through the camera's lens model) of the body points `P_k`, placed in the camera
--- by `X = R·P_k + t`, plus, when an axis prior is given, `w²·|R·a × u|²`: the body axis `a`
--- held near the camera-frame direction `u` (`w` in pixels per radian of misalignment). As in
+-- by `X = R·P_k + t`, plus two optional priors: `w²·|R·a × u|²`, the body axis `a` held near
+-- the camera-frame direction `u` (`w` in pixels per radian of misalignment), and
+-- `v²·(n·t - d)²`, the body origin held near the plane `n·X = d` (`v` in pixels per unit of
+-- length). As in
 -- `tagpose.refine`, the rotation is updated on the left by the Cayley transform of a rotation
 -- vector and the normal equations are accumulated point by point:
 --
@@ -36,7 +38,7 @@ M.STEP_RELATIVE = 1e-3
 M.STEP_TOLERANCE = 1e-5
 
 -- constants of a fit: fx, fy, cx, cy, lens kind, its 8 coefficients (see camera.lens), then the
--- axis prior: a (body), u (camera), w
+-- axis prior: a (body), u (camera), w, then the plane prior: n, d, v
 local K = {}
 
 local function constants(camera, prior)
@@ -45,10 +47,15 @@ local function constants(camera, prior)
   for i = 6, 13 do
     if K[i] == nil then K[i] = 0 end
   end
-  if prior and prior[7] > 0 then
-    for i = 1, 7 do K[13 + i] = prior[i] end
-  else
-    K[20] = 0
+  K[20], K[25] = 0, 0
+  if prior then
+    if prior[7] > 0 then
+      for i = 1, 7 do K[13 + i] = prior[i] end
+    end
+    local v = prior[12]
+    if v and v > 0 then
+      for i = 8, 12 do K[13 + i] = prior[i] end
+    end
   end
   return K
 end
@@ -56,38 +63,46 @@ end
 -- Sum of squared pixel residuals of points first..last at the pose Q = {r (9), t (3)}, without
 -- the prior; math.huge when a point is not in front of the camera.
 local function residuals(C, Q, points, px, first, last)
-  local fx, fy, cx, cy, kind = C[1], C[2], C[3], C[4], C[5]
-  local l1, l2, l3, l4, l5, l6, l7, l8 = C[6], C[7], C[8], C[9], C[10], C[11], C[12], C[13]
-  local r1, r2, r3, r4, r5, r6, r7, r8, r9 = Q[1], Q[2], Q[3], Q[4], Q[5], Q[6], Q[7], Q[8], Q[9]
-  local tx, ty, tz = Q[10], Q[11], Q[12]
+  local kind = C[5]
   local sum = 0
   for k = first, last do
+    -- (the pose is read from Q inside the loop: with it in locals LuaJIT cannot compile the
+    -- loop's exits)
     local b = 3 * k
     local a1, a2, a3 = points[b - 2], points[b - 1], points[b]
-    local z = r7 * a1 + r8 * a2 + r9 * a3 + tz
+    local z = Q[7] * a1 + Q[8] * a2 + Q[9] * a3 + Q[12]
     if not (z > 0) then return huge end
-    local pu, pv = (r1 * a1 + r2 * a2 + r3 * a3 + tx) / z, (r4 * a1 + r5 * a2 + r6 * a3 + ty) / z
+    local pu = (Q[1] * a1 + Q[2] * a2 + Q[3] * a3 + Q[10]) / z
+    local pv = (Q[4] * a1 + Q[5] * a2 + Q[6] * a3 + Q[11]) / z
     if kind == 1 then
-      pu, pv = brown(pu, pv, l1, l2, l3, l4, l5, l6, l7, l8)
+      pu, pv = brown(pu, pv, C[6], C[7], C[8], C[9], C[10], C[11], C[12], C[13])
     elseif kind == 2 then
-      pu, pv = fisheye(pu, pv, l1, l2, l3, l4)
+      pu, pv = fisheye(pu, pv, C[6], C[7], C[8], C[9])
     end
-    local du, dv = fx * pu + cx - px[2 * k - 1], fy * pv + cy - px[2 * k]
+    local du, dv = C[1] * pu + C[3] - px[2 * k - 1], C[2] * pv + C[4] - px[2 * k]
     sum = sum + du * du + dv * dv
   end
   return sum
 end
 
--- The prior's cost w²·|R·a × u|² at the pose Q.
+-- The priors' cost w²·|R·a × u|² + v²·(n·t - d)² at the pose Q.
 local function prior_cost(C, Q)
+  local sum = 0
   local w = C[20]
-  if w == 0 then return 0 end
-  local b1, b2, b3, u1, u2, u3 = C[14], C[15], C[16], C[17], C[18], C[19]
-  local a1 = Q[1] * b1 + Q[2] * b2 + Q[3] * b3
-  local a2 = Q[4] * b1 + Q[5] * b2 + Q[6] * b3
-  local a3 = Q[7] * b1 + Q[8] * b2 + Q[9] * b3
-  local e1, e2, e3 = a2 * u3 - a3 * u2, a3 * u1 - a1 * u3, a1 * u2 - a2 * u1
-  return w * w * (e1 * e1 + e2 * e2 + e3 * e3)
+  if w > 0 then
+    local b1, b2, b3, u1, u2, u3 = C[14], C[15], C[16], C[17], C[18], C[19]
+    local a1 = Q[1] * b1 + Q[2] * b2 + Q[3] * b3
+    local a2 = Q[4] * b1 + Q[5] * b2 + Q[6] * b3
+    local a3 = Q[7] * b1 + Q[8] * b2 + Q[9] * b3
+    local e1, e2, e3 = a2 * u3 - a3 * u2, a3 * u1 - a1 * u3, a1 * u2 - a2 * u1
+    sum = w * w * (e1 * e1 + e2 * e2 + e3 * e3)
+  end
+  local v = C[25]
+  if v > 0 then
+    local e = v * (C[21] * Q[10] + C[22] * Q[11] + C[23] * Q[12] - C[24])
+    sum = sum + e * e
+  end
+  return sum
 end
 
 -- The normal equations of the pose Q accumulated into N as {h11, ..., h16, h22, ..., h66,
@@ -175,6 +190,16 @@ local function linearise(N, C, Q, points, px, n)
       N[22], N[23], N[24] = N[22] + j1 * er, N[23] + j2 * er, N[24] + j3 * er
     end
   end
+  local v = C[25]
+  if v > 0 then
+    -- the plane prior e = v·(n·t - d): ∂e/∂t = v·n
+    local n1, n2, n3 = v * C[21], v * C[22], v * C[23]
+    local e = n1 * tx + n2 * ty + n3 * tz - v * C[24]
+    s = s + e * e
+    N[16], N[17], N[18] = N[16] + n1 * n1, N[17] + n1 * n2, N[18] + n1 * n3
+    N[19], N[20], N[21] = N[19] + n2 * n2, N[20] + n2 * n3, N[21] + n3 * n3
+    N[25], N[26], N[27] = N[25] + n1 * e, N[26] + n2 * e, N[27] + n3 * e
+  end
   return s
 end
 
@@ -226,13 +251,15 @@ local pose_p, pose_q = {}, {} -- the pose and the trial pose: r (9), t (3)
 -- @tparam number ty
 -- @tparam number tz
 -- @tparam[opt] int max_iterations bound on linearisations (default `MAX_ITERATIONS`)
--- @tparam[opt] {number,...} prior `{ax, ay, az, ux, uy, uz, w}`: hold the unit body axis `a`
---   near the unit camera direction `u`, with weight `w` (px per radian); nil or `w = 0` for none
+-- @tparam[opt] {number,...} prior `{ax, ay, az, ux, uy, uz, w, nx, ny, nz, d, v}`: hold the
+--   unit body axis `a` near the unit camera direction `u`, with weight `w` (px per radian), and
+--   the body origin near the plane `n·X = d` (`n` unit, camera frame), with weight `v` (px per
+--   unit of length); a weight of 0 (or a missing `v`) leaves that prior out
 -- @treturn number tx
 -- @treturn number ty
 -- @treturn number tz
--- @treturn number the cost at the result: the sum of squared pixel residuals (plus the prior's
---   term); `math.huge` when the start puts a point behind the camera
+-- @treturn number the cost at the result: the sum of squared pixel residuals (plus the priors'
+--   terms); `math.huge` when the start puts a point behind the camera
 -- @treturn int linearisations used
 function M.fit(camera, points, px, n, r, tx, ty, tz, max_iterations, prior)
   max_iterations = max_iterations or M.MAX_ITERATIONS
