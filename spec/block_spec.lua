@@ -527,6 +527,23 @@ describe("tagpose.block", function()
       assert.matches("not finite", blocks.skipped[2].reason)
     end)
 
+    it("reports a tag detected twice once, and the copy as skipped", function()
+      local rng = geometry.rng(8)
+      for k = 1, 3 do
+        local _, t, tags = random_block(rng, k)
+        local dets = detections_of(tags)
+        local copy = {}
+        for i, c in ipairs(tags[1].corners) do copy[i] = { c[1] + 0.2, c[2] - 0.1 } end
+        dets[#dets + 1] = { id = 0, corners = copy }
+        local blocks = assert(tagpose.block.solve(dets, camera, TAG, BLOCK))
+        assert.equal(1, #blocks)
+        assert.equal(k, blocks[1].faces)
+        assert.vector_near(t, blocks[1].position, 0.002)
+        assert.equal(1, #blocks.skipped)
+        assert.matches("does not fit the block", blocks.skipped[1].reason)
+      end
+    end)
+
     it("returns nil and a message when no detection gives a pose", function()
       local blocks, err = tagpose.block.solve({ { id = 0, corners = { { 1, 1 }, { 2, 2 },
         { 3, 3 }, { 4, 4 } } } }, camera, TAG, BLOCK)

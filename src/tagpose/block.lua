@@ -84,6 +84,9 @@ M.TRACK_K = 25
 --- A hypothesis whose start is within this angle (radians, modulo the symmetries) of the
 -- result of a fitted one over the same tags is not fitted again.
 M.TWIN_ANGLE = rad(10)
+--- Two blocks whose centres are closer than this (× block_size) are one cube: the later found
+-- (fewer faces, or a larger error) is dropped and its tags reported in `skipped`.
+M.OVERLAP = 0.5
 --- Bound on the linearisations of one joint fit.
 M.MAX_ITERATIONS = 20
 
@@ -877,10 +880,10 @@ function M.solve(detections, camera, tag_size, block_size, options)
     if best then
       h, how = best, "faces"
     else
-      -- no two tags make a block: each free tag is one (the first free one now)
+      -- no two tags make a block: each free tag is one (the best-fitting first)
       local s = nil
       for k = 1, #dets do
-        if free[k] and not s then s = k end
+        if free[k] and (not s or dets[k].best_sse < dets[s].best_sse) then s = k end
       end
       h, other, how = single(s, dets, camera, half, half_block, ctx)
       if not h then
@@ -899,20 +902,36 @@ function M.solve(detections, camera, tag_size, block_size, options)
     end
   end
 
-  -- results
+  -- results: finite, and no two cubes in one place (found in order of faces, then error: a
+  -- later block within OVERLAP of an earlier one is a tag that did not fit it, such as the
+  -- same tag detected twice)
   local blocks = {}
+  local overlap2 = (M.OVERLAP * block_size) ^ 2
   for _, f in ipairs(found) do
     local h = f.h
     local n = #h.members
     local err = sqrt(h.sse / (4 * n))
-    if finite_block(h.r, h.x, h.y, h.z, err) then
+    local reason = nil
+    if not finite_block(h.r, h.x, h.y, h.z, err) then
+      reason = "block: the fit is not finite"
+    else
+      for k = 1, #blocks do
+        local o = blocks[k].h
+        if (o.x - h.x) ^ 2 + (o.y - h.y) ^ 2 + (o.z - h.z) ^ 2 < overlap2 then
+          local list = {}
+          for m = 1, #o.members do list[m] = dets[o.members[m]].index end
+          reason = "block: the tag does not fit the block of detection(s) "
+            .. table.concat(list, ", ") .. " in its place"
+        end
+      end
+    end
+    if reason then
+      for m = 1, n do
+        skipped[#skipped + 1] = { index = dets[h.members[m]].index, reason = reason }
+      end
+    else
       blocks[#blocks + 1] = f
       f.err = err
-    else
-      for m = 1, n do
-        skipped[#skipped + 1] = { index = dets[h.members[m]].index,
-          reason = "block: the fit is not finite" }
-      end
     end
   end
   local match, next_id = {}, 1
