@@ -534,33 +534,53 @@ local function fit_hypothesis(h, dets, camera, half, half_block, ctx)
   return h
 end
 
--- The hypothesis seeded by candidate a of detection s among the free detections.
-local function hypothesis(s, a, dets, free, block_size, faces)
-  local seed = dets[s].cands[a]
-  local h = { members = { s }, g = { faces and dets[s].face_r or IDENTITY }, cands = { a },
-    score = { 0 }, start = seed }
-  for j = 1, #dets do
-    if free[j] and j ~= s then
-      local d = dets[j]
-      local best_g, best_score, best_b = nil, huge, nil
-      for b = 1, #d.cands do
-        local g, score = agree(seed, d.cands[b], faces and d.face_r, block_size)
-        if g and score < best_score then best_g, best_score, best_b = g, score, b end
+-- For every candidate a of every detection s (key 2s + a), the other detections with a candidate
+-- that agrees with it: links[key][j] = {G, score, b} for the best such candidate b. Computed
+-- once a frame, in its own loops (LuaJIT then keeps the traces of `agree`'s branches short).
+local function link_all(dets, block_size, faces)
+  local links = {}
+  for s = 1, #dets do
+    local cands = dets[s].cands
+    for a = 1, #cands do
+      local seed, row = cands[a], {}
+      for j = 1, #dets do
+        local d = dets[j]
+        if j ~= s then
+          local best_g, best_score, best_b = nil, huge, nil
+          for b = 1, #d.cands do
+            local g, score = agree(seed, d.cands[b], faces and d.face_r, block_size)
+            if g and score < best_score then best_g, best_score, best_b = g, score, b end
+          end
+          if best_g then row[j] = { best_g, best_score, best_b } end
+        end
       end
-      if best_g then
-        -- one tag per face: the closer claim keeps it
-        local clash = nil
-        for m = 1, #h.members do
-          local gm = h.g[m]
-          if gm[3] == best_g[3] and gm[6] == best_g[6] and gm[9] == best_g[9] then clash = m end
-        end
-        if not clash then
-          local m = #h.members + 1
-          h.members[m], h.g[m], h.cands[m], h.score[m] = j, best_g, best_b, best_score
-        elseif clash > 1 and best_score < h.score[clash] then
-          h.members[clash], h.g[clash], h.cands[clash], h.score[clash] = j, best_g, best_b,
-            best_score
-        end
+      links[2 * s + a] = row
+    end
+  end
+  return links
+end
+
+-- The hypothesis seeded by candidate a of detection s among the free detections.
+local function hypothesis(s, a, dets, free, links, faces)
+  local h = { members = { s }, g = { faces and dets[s].face_r or IDENTITY }, cands = { a },
+    score = { 0 }, start = dets[s].cands[a] }
+  local row = links[2 * s + a]
+  for j = 1, #dets do
+    local link = row[j]
+    if link and free[j] then
+      local best_g, best_score, best_b = link[1], link[2], link[3]
+      -- one tag per face: the closer claim keeps it
+      local clash = nil
+      for m = 1, #h.members do
+        local gm = h.g[m]
+        if gm[3] == best_g[3] and gm[6] == best_g[6] and gm[9] == best_g[9] then clash = m end
+      end
+      if not clash then
+        local m = #h.members + 1
+        h.members[m], h.g[m], h.cands[m], h.score[m] = j, best_g, best_b, best_score
+      elseif clash > 1 and best_score < h.score[clash] then
+        h.members[clash], h.g[clash], h.cands[clash], h.score[clash] = j, best_g, best_b,
+          best_score
       end
     end
   end
@@ -697,8 +717,7 @@ local function output_rotation(r, x, y, z, ctx, prev, out)
 end
 
 local function finite_block(r, x, y, z, err)
-  local s = x + y + z + err
-  for i = 1, 9 do s = s + r[i] end
+  local s = x + y + z + err + r[1] + r[2] + r[3] + r[4] + r[5] + r[6] + r[7] + r[8] + r[9]
   return s == s and s > -huge and s < huge
 end
 
@@ -849,6 +868,7 @@ function M.solve(detections, camera, tag_size, block_size, options)
   local remaining = #dets
   -- hypotheses by seed (kept while all their tags are free) and those fitted this frame
   local cache, fitted = {}, {}
+  local links = link_all(dets, block_size, faces)
   while remaining > 0 do
     local best = nil
     for s = 1, #dets do
@@ -857,7 +877,7 @@ function M.solve(detections, camera, tag_size, block_size, options)
           local key = 2 * s + a
           local h = cache[key]
           if not (h and all_free(h.gated, free)) then
-            h = hypothesis(s, a, dets, free, block_size, faces)
+            h = hypothesis(s, a, dets, free, links, faces)
             local gated = {}
             for m = 1, #h.members do gated[m] = h.members[m] end
             h.gated = gated
@@ -990,5 +1010,13 @@ function M.solve(detections, camera, tag_size, block_size, options)
   out.next_id = next_id
   return out
 end
+
+-- solve drives the pipeline through loops over a few tags and blocks whose bodies branch a lot
+-- and call much: on LuaJIT their traces outgrow the machine-code area (512 KB by default), which
+-- is then flushed and refilled every hundred frames or so. Left to the interpreter (the kernels
+-- it calls still compile their own loops) it runs about three times faster there. Whether the VM
+-- can do that is compat's to know: `compat.interpret` is its proposed helper; without it this
+-- line does nothing.
+if compat.interpret then compat.interpret(M.solve) end
 
 return M
