@@ -9,9 +9,10 @@
 -- and truth_tags.csv (frame,block,face,x,y,z,qw,qx,qy,qz, one row per corner row).
 --
 -- Without truth it prints the block poses as a CSV (frame,block,x,y,z,qw,qx,qy,qz,faces,error).
--- With truth it scores tagpose.block.solve three times - with nothing but the corners, with an
--- up vector, with an up vector and the floor - and prints the table of PEERS.md beside the
--- baseline's rows read from PEERS.md. --up (--floor) scores only the run with up (and the
+-- With truth it scores tagpose.block.solve four times - with nothing but the corners, with
+-- up = "auto" (up from the frame's blocks seen with two or more faces), with an up vector, with
+-- an up vector and the floor - and prints the table of PEERS.md beside the baseline's rows read
+-- from PEERS.md. --up (--floor) scores only the run with up (and the
 -- floor), --track passes each frame's blocks to the next (frames numbered consecutively),
 -- --out writes the block poses of the (last) run, --passes sets the timing passes (median).
 --
@@ -152,7 +153,7 @@ if exists(dir .. "/truth.csv") then
 end
 
 -- one run over every frame; returns the predictions per frame and µs per frame
-local function run(with_up, with_floor)
+local function run(with_up, with_floor, auto)
   local results, times = {}, {}
   for pass = 1, opts.passes do
     local previous, last_frame = nil, nil
@@ -160,6 +161,7 @@ local function run(with_up, with_floor)
     for k, f in ipairs(frames) do
       local options = {}
       if with_up then options.up = f.up end
+      if auto then options.up = "auto" end
       if with_floor then options.floor = f.floor end
       if opts.track and last_frame == f.frame - 1 then options.previous = previous end
       local blocks, err = tagpose.block.solve(f.detections, camera, tag_size, block_size, options)
@@ -403,18 +405,18 @@ local header = "| solver | blocks seen with | true | recall % | precision % | mi
   .. "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
 
 local lines = {}
-local runs = { { false, false }, { true, false }, { true, true } }
+local runs = { { false, false }, { false, false, true }, { true, false }, { true, true } }
 if opts.floor then
   runs = { { true, true } }
 elseif opts.up then
   runs = { { true, false } }
 end
 for _, mode in ipairs(runs) do
-  local with_up, with_floor = mode[1], mode[2]
-  local results, us = run(with_up, with_floor)
+  local with_up, with_floor, auto = mode[1], mode[2], mode[3]
+  local results, us = run(with_up, with_floor, auto)
   if opts.out then write_poses(opts.out, results) end
-  local name = "tagpose.block" .. (with_floor and " (up, floor)" or with_up and " (up)" or "")
-    .. (opts.track and " (track)" or "")
+  local name = "tagpose.block" .. (with_floor and " (up, floor)" or with_up and " (up)"
+    or auto and " (up auto)" or "") .. (opts.track and " (track)" or "")
   for _, l in ipairs(rows_of(name, score(results), us)) do lines[#lines + 1] = l end
 end
 for _, l in ipairs(peer_rows()) do lines[#lines + 1] = l end

@@ -243,6 +243,51 @@ describe("tagpose.block", function()
     end)
   end)
 
+  describe("options.up = 'auto'", function()
+    it("takes up from the frame's blocks seen with two faces, for those seen with one", function()
+      local rng = geometry.rng(47)
+      local flips_error, flips_auto = 0, 0
+      for n = 1, 100 do
+        local pitch, height = rad(rng.uniform(20, 40)), rng.uniform(0.06, 0.22)
+        local cam_r, cam_c = robot_camera(pitch, height)
+        -- a block seen with two faces, and a block further away, tipped, seen with one
+        local _, _, tags1 = view(cam_r, cam_c, { 0.15, 0.05, 0.5 * BLOCK }, yaw(rad(45)),
+          { rng = rng, sigma = 0.3, faces = { ["-x"] = true, ["+y"] = true } })
+        local tipped = geometry.mul(yaw(rng.uniform(0, 6.3)),
+          geometry.axis_angle(1, 0, 0, math.pi / 2))
+        local r2, t2, tags2 = view(cam_r, cam_c, { rng.uniform(0.3, 0.5),
+          rng.uniform(-0.1, 0.1), 0.5 * BLOCK }, tipped, { rng = rng, sigma = 0.5 })
+        local all = { tags1[1], tags1[2], tags2[1] }
+        local function flipped(blocks)
+          for _, b in ipairs(blocks) do
+            local p = b.position
+            if sqrt((p.x - t2[1]) ^ 2 + (p.y - t2[2]) ^ 2 + (p.z - t2[3]) ^ 2) < 0.05 then
+              return symmetric_error(r2, b.rotation) > 30
+            end
+          end
+          return true
+        end
+        local plain, auto = solve(all), solve(all, { up = "auto" })
+        assert.equal(2, #auto, "scene " .. n)
+        if flipped(plain) then flips_error = flips_error + 1 end
+        if flipped(auto) then flips_auto = flips_auto + 1 end
+      end
+      assert.is_true(flips_error >= 5, "flips by error " .. flips_error)
+      assert.is_true(flips_auto <= 1,
+        "flips with up auto " .. flips_auto .. ", by error " .. flips_error)
+    end)
+
+    it("is no up at all without a block seen with two faces", function()
+      local rng = geometry.rng(48)
+      for _ = 1, 20 do
+        local _, _, tags = random_block(rng, 1, 0.5)
+        local a, b = solve(tags)[1], solve(tags, { up = "auto" })[1]
+        assert.same(a.position, b.position)
+        assert.equal("error", b.orientation)
+      end
+    end)
+  end)
+
   describe("options.floor", function()
     it("holds a resting block's centre at its level, which fixes a lone tag's depth", function()
       local rng = geometry.rng(43)
@@ -599,9 +644,9 @@ describe("tagpose.block", function()
       { function() tagpose.block.solve(good, camera, TAG, BLOCK, 3) end,
         "bad argument #5 to 'solve' (options table expected, got number)" },
       { function() tagpose.block.solve(good, camera, TAG, BLOCK, { up = { 0, 0, 0 } }) end,
-        "bad argument #5 to 'solve' (options.up: non-zero vector expected)" },
+        "bad argument #5 to 'solve' (options.up: non-zero vector expected (or 'auto'))" },
       { function() tagpose.block.solve(good, camera, TAG, BLOCK, { floor = 0.1 }) end,
-        "bad argument #5 to 'solve' (options.floor: needs options.up)" },
+        "bad argument #5 to 'solve' (options.floor: needs options.up (a vector))" },
       { function() tagpose.block.solve(good, camera, TAG, BLOCK, { faces = { [1] = "top" } }) end,
         "bad argument #5 to 'solve' (options.faces[1]: face '+x', '-x', '+y', '-y', '+z' or "
           .. "'-z' expected, got string top)" },

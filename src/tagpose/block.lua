@@ -278,9 +278,11 @@ local function read_options(options)
   if options == nil then return o end
   if type(options) ~= "table" then return nil, "options table expected, got " .. type(options) end
   local problem
-  if options.up ~= nil then
+  if options.up == "auto" then
+    o.auto_up = true
+  elseif options.up ~= nil then
     o.up, problem = read_direction(options.up, "options.up")
-    if not o.up then return nil, problem end
+    if not o.up then return nil, problem .. " (or 'auto')" end
   end
   if options.faces ~= nil then
     if type(options.faces) ~= "table" then
@@ -306,7 +308,7 @@ local function read_options(options)
     if not is_finite(floor) then
       return nil, "options.floor: finite number expected, got " .. describe(floor)
     end
-    if not o.up then return nil, "options.floor: needs options.up" end
+    if not o.up then return nil, "options.floor: needs options.up (a vector)" end
     o.floor = floor
   end
   tol = options.floor_tolerance
@@ -721,6 +723,35 @@ local function finite_block(r, x, y, z, err)
   return s == s and s > -huge and s < huge
 end
 
+-- up = 'auto': the face axis nearest the camera's -y of each block found with two or more
+-- faces (each block resting on a face has one along gravity), summed with weights by faces;
+-- nil when there is none.
+local function frame_up(found, guess)
+  local ux, uy, uz, any = 0, 0, 0, false
+  for i = 1, #found do
+    local h = found[i].h
+    local n = #h.members
+    if n > 1 then
+      local r = h.r
+      local d1 = r[1] * guess[1] + r[4] * guess[2] + r[7] * guess[3]
+      local d2 = r[2] * guess[1] + r[5] * guess[2] + r[8] * guess[3]
+      local d3 = r[3] * guess[1] + r[6] * guess[2] + r[9] * guess[3]
+      local k, d = 3, d3
+      if abs(d1) >= abs(d2) and abs(d1) >= abs(d3) then
+        k, d = 1, d1
+      elseif abs(d2) >= abs(d3) then
+        k, d = 2, d2
+      end
+      local w = d < 0 and -n or n
+      ux, uy, uz, any = ux + w * r[k], uy + w * r[3 + k], uz + w * r[6 + k], true
+    end
+  end
+  if not any then return nil end
+  local norm = sqrt(ux * ux + uy * uy + uz * uz)
+  if not (norm > 0) then return nil end
+  return { ux / norm, uy / norm, uz / norm }
+end
+
 -- orders for table.sort (module-level: a closure made per call stops LuaJIT's compiler)
 local function first_smaller(a, b) return a[1] < b[1] end
 local function nearer(a, b)
@@ -763,7 +794,11 @@ end
 --   - `up`: a vector `{x =, y =, z =}` (or `{x, y, z}`) in the camera frame pointing up
 --     (against gravity), when known: a block resting on a face has a face axis along it, which
 --     decides between the two poses of a block seen with one face and steadies every fit; it
---     also sets the canonical z. Default: none (and `(0, -1, 0)` for the canonical choice);
+--     also sets the canonical z. Default: none (and `(0, -1, 0)` for the canonical choice).
+--     `"auto"`: when the frame has blocks seen with two or more faces, up is their face axis
+--     nearest the camera's -y, used for the blocks seen with one face (this assumes that all
+--     the blocks in view rest on a face, on the floor or on each other, and that the camera is
+--     rolled and pitched by less than 45 degrees);
 --   - `up_tolerance`: standard deviation of a block's tilt from `up`, radians (default 2°);
 --   - `floor` (needs `up`): the height of the camera's centre above the floor the blocks rest
 --     on, when known: a block resting on the floor or on other blocks has its centre at
@@ -899,6 +934,11 @@ function M.solve(detections, camera, tag_size, block_size, options)
     local h, other, how
     if best then
       h, how = best, "faces"
+    elseif ctx.auto_up and not ctx.up then
+      -- up = 'auto': the blocks found with two or more faces (all of them, now) show it
+      ctx.up = frame_up(found, ctx.default_up)
+      ctx.prior_w = ctx.up and sqrt(sigma2) / ctx.up_tolerance or 0
+      ctx.auto_up = false
     else
       -- no two tags make a block: each free tag is one (the best-fitting first)
       local s = nil
