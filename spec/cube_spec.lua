@@ -36,6 +36,12 @@ describe("tagpose.cube", function()
       end
     end)
 
+    it("have their inverses listed in INVERSE", function()
+      for k, g in ipairs(cube.ROTATIONS) do
+        assert.same({ 1, 0, 0, 0, 1, 0, 0, 0, 1 }, geometry.mul(g, cube.ROTATIONS[cube.INVERSE[k]]))
+      end
+    end)
+
     it("are closed under composition", function()
       local index = {}
       for i, g in ipairs(cube.ROTATIONS) do index[key(g)] = i end

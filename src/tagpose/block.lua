@@ -46,7 +46,7 @@ local cube = require("tagpose.cube")
 
 local is_finite, is_positive, describe = compat.is_finite, args.is_positive, args.describe
 local sqrt, abs, max, huge, rad = math.sqrt, math.abs, math.max, math.huge, math.rad
-local ROTATIONS, FACES = cube.ROTATIONS, cube.FACES
+local ROTATIONS, INVERSE, FACES = cube.ROTATIONS, cube.INVERSE, cube.FACES
 
 local M = {}
 
@@ -344,29 +344,27 @@ local function candidate(pose, face_r, half_block)
   return c
 end
 
--- Does candidate b of another detection agree with the block of candidate a? Returns the face
--- rotation G (tag → block frame of a) and a distance (smaller is better), or nil.
-local function agree(a, b, face_b, block_size)
+-- Does candidate b of another detection agree with the block of candidate a? Returns a distance
+-- (smaller is better) and, when the faces are not known, the index of the face rotation G of b
+-- in a's block frame (b's tag frame written in a's block frame); or nil.
+local function agree(a, b, faces, block_size)
   local dx, dy, dz = b.x - a.x, b.y - a.y, b.z - a.z
-  local mx, my, mz = a.x + b.x, a.y + b.y, a.z + b.z
-  local mn = sqrt(mx * mx + my * my + mz * mz)
-  local along = (dx * mx + dy * my + dz * mz) / mn
-  local perp2 = dx * dx + dy * dy + dz * dz - along * along
+  local d2 = dx * dx + dy * dy + dz * dz
   local pg, ag = M.PERP_GATE * block_size, M.ALONG_GATE * block_size
+  if d2 > pg * pg + ag * ag then return nil end
+  local mx, my, mz = a.x + b.x, a.y + b.y, a.z + b.z
+  local along = (dx * mx + dy * my + dz * mz) / sqrt(mx * mx + my * my + mz * mz)
+  local perp2 = d2 - along * along
   if perp2 > pg * pg or abs(along) > ag then return nil end
-  local g, angle
-  if face_b then
+  local k, angle
+  if faces then
     -- known faces: the block frames must agree themselves
     angle = rotation.angle(a.r, b.r)
-    g = face_b
   else
-    -- G = nearest(R_aᵀ·R_b): b's tag frame written in a's block frame
-    local k
     k, angle = cube.nearest(t_mul(a.r, b.r, work))
-    g = ROTATIONS[k]
   end
   if angle > M.ROTATION_GATE then return nil end
-  return g, sqrt(perp2) / pg + angle / M.ROTATION_GATE
+  return sqrt(perp2) / pg + angle / M.ROTATION_GATE, k
 end
 
 -- The four corners of a tag on the face G (tag → block rotation) into `points` from point
@@ -538,25 +536,34 @@ end
 
 -- For every candidate a of every detection s (key 2s + a), the other detections with a candidate
 -- that agrees with it: links[key][j] = {G, score, b} for the best such candidate b. Computed
--- once a frame, in its own loops (LuaJIT then keeps the traces of `agree`'s branches short).
+-- once a frame, each pair of candidates once.
 local function link_all(dets, block_size, faces)
   local links = {}
   for s = 1, #dets do
-    local cands = dets[s].cands
-    for a = 1, #cands do
-      local seed, row = cands[a], {}
-      for j = 1, #dets do
-        local d = dets[j]
-        if j ~= s then
-          local best_g, best_score, best_b = nil, huge, nil
-          for b = 1, #d.cands do
-            local g, score = agree(seed, d.cands[b], faces and d.face_r, block_size)
-            if g and score < best_score then best_g, best_score, best_b = g, score, b end
+    for a = 1, #dets[s].cands do links[2 * s + a] = {} end
+  end
+  for s = 1, #dets do
+    local ds = dets[s]
+    for j = s + 1, #dets do
+      local dj = dets[j]
+      for a = 1, #ds.cands do
+        local ca, row_a = ds.cands[a], links[2 * s + a]
+        for b = 1, #dj.cands do
+          local score, k = agree(ca, dj.cands[b], faces, block_size)
+          if score then
+            -- j seen from s's candidate a, and s seen from j's candidate b
+            local link = row_a[j]
+            if not link or score < link[2] then
+              row_a[j] = { faces and dj.face_r or ROTATIONS[k], score, b }
+            end
+            local row_b = links[2 * j + b]
+            link = row_b[s]
+            if not link or score < link[2] then
+              row_b[s] = { faces and ds.face_r or ROTATIONS[INVERSE[k]], score, a }
+            end
           end
-          if best_g then row[j] = { best_g, best_score, best_b } end
         end
       end
-      links[2 * s + a] = row
     end
   end
   return links

@@ -85,6 +85,9 @@ for k, g in ipairs(ROTATIONS) do
   end
 end
 
+--- `INVERSE[k]` is the index of the inverse (transpose) of `ROTATIONS[k]`.
+M.INVERSE = {}
+
 --- The cube rotation nearest to a 3×3 matrix (the one maximising `trace(Gᵀ·r)`).
 -- For each column permutation the best signs are those of the entries it picks, with the
 -- smallest entry's sign turned when they would make a reflection.
@@ -122,6 +125,10 @@ function M.nearest(r)
   local c = 0.5 * (score - 1)
   if c > 1 then c = 1 elseif c < -1 then c = -1 end
   return BY_PATTERN[(best - 1) * 8 + bits + 1], math.acos(c)
+end
+
+for k, g in ipairs(ROTATIONS) do
+  M.INVERSE[k] = M.nearest({ g[1], g[4], g[7], g[2], g[5], g[8], g[3], g[6], g[9] })
 end
 
 --- Name of the face whose outward normal is `(nx, ny, nz)` (the nearest axis direction).
