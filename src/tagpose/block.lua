@@ -17,17 +17,18 @@
 --    `ALONG_GATE`) and whose rotation agrees modulo the cube's symmetries (`ROTATION_GATE`) are
 --    assigned the face their candidate implies;
 -- 3. joint fit: Levenberg-Marquardt over the block's six pose parameters with all `4k` corners
---    (`tagpose.rigid`), from the seed's pose. A member whose corners the block cannot explain
---    (its error exceeds its own best single-tag fit by more than the noise allows,
---    `MERGE_FLOOR`, `MERGE_K`) is reassigned to the face that fits best or dropped. The
---    hypothesis with the most members, then the lowest error, becomes a block; its tags leave
---    the pool, and the rest are grouped again. Faces that are not coplanar leave no planar
---    ambiguity: a block seen with two or more faces has one pose;
+--    (`tagpose.rigid`), from the seed's pose. While the joint fit's error exceeds the sum of its
+--    members' own best single-tag fits by more than the frame's corner noise explains (an
+--    F-test at level `ALPHA`, or `MERGE_FLOOR`), the member with the largest excess is
+--    reassigned to the face that fits it best, or dropped. The hypothesis with the most
+--    members, then the lowest error, becomes a block; its tags leave the pool, and the rest are
+--    grouped again. Faces that are not coplanar leave no planar ambiguity: a block seen with
+--    two or more faces has one pose;
 -- 4. a block seen with one face keeps both candidates: the one chosen is the better-fitting,
---    unless the previous frame's block (tracking) or `options.up` (an upright or tipped block
---    has a face axis along gravity) says otherwise; the other is `alternative`. With `up`,
---    every fit holds the block's nearest face axis along it (`up_tolerance`), and with
---    `options.floor` a resting block's centre at its height (`floor_tolerance`);
+--    unless `options.up` (an upright or tipped block has a face axis along gravity) or, without
+--    up, the previous frame's block (tracking) says otherwise; the other is `alternative`.
+--    With `up`, every fit holds the block's nearest face axis along it (`up_tolerance`), and
+--    with `options.floor` a resting block's centre at its height (`floor_tolerance`);
 -- 5. canonical orientation (when faces are indistinguishable): block z is the face axis
 --    closest to up (`options.up`, default the camera's -y, `(0, -1, 0)`), block x the
 --    remaining face axis closest to the direction from the camera to the block's centre,
@@ -688,9 +689,11 @@ local function single(s, dets, camera, half, half_block, ctx)
   elseif second.cost < first.cost then
     first, second = second, first
   end
-  local prev = nearest_previous(ctx.previous, first.x, first.y, first.z,
+  -- without up, a decided orientation of the previous frame continues (up, where given, is
+  -- the stronger evidence)
+  local prev = not ctx.up and (nearest_previous(ctx.previous, first.x, first.y, first.z,
     M.TRACK_GATE * ctx.block_size)
-    or nearest_previous(ctx.previous, second.x, second.y, second.z, M.TRACK_GATE * ctx.block_size)
+    or nearest_previous(ctx.previous, second.x, second.y, second.z, M.TRACK_GATE * ctx.block_size))
   if prev and prev.decided then
     local a1 = symmetric_angle(first.r, prev.r, ctx.faces)
     local a2 = symmetric_angle(second.r, prev.r, ctx.faces)
