@@ -502,6 +502,18 @@ describe("tagpose.block", function()
       end
     end)
 
+    it("carries the evidence on the corner noise from frame to frame", function()
+      local rng = geometry.rng(83)
+      local _, _, tags = random_block(rng, 2, 0.3)
+      local first = solve(tags)
+      assert.equal(4, first.noise.dof)
+      local s1 = first.noise.sse
+      assert.is_true(s1 > 0)
+      local second = solve(tags, { previous = first })
+      assert.near(4 + 0.8 * 4, second.noise.dof, 1e-12)
+      assert.near(s1 + 0.8 * s1, second.noise.sse, 1e-12)
+    end)
+
     it("gives a new block a new id", function()
       local cam_r, cam_c = robot_camera(rad(30), 0.12)
       local _, _, tags1 = view(cam_r, cam_c, { 0.2, 0.05, 0.5 * BLOCK }, yaw(0.2))
@@ -650,6 +662,10 @@ describe("tagpose.block", function()
       { function() tagpose.block.solve(good, camera, TAG, BLOCK, { faces = { [1] = "top" } }) end,
         "bad argument #5 to 'solve' (options.faces[1]: face '+x', '-x', '+y', '-y', '+z' or "
           .. "'-z' expected, got string top)" },
+      { function() tagpose.block.solve(good, camera, TAG, BLOCK,
+        { previous = { noise = { sse = -1, dof = 2 } } }) end,
+        "bad argument #5 to 'solve' (options.previous.noise: {sse =, dof =} (finite, >= 0) "
+          .. "expected)" },
       { function() tagpose.block.solve(good, camera, TAG, BLOCK, { previous = { {} } }) end,
         "bad argument #5 to 'solve' (options.previous[1]: block with a finite position "
           .. "expected)" },

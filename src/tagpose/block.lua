@@ -53,8 +53,11 @@ local M = {}
 
 --- Grouping gate across the line of sight: implied centres closer than this (× block_size).
 M.PERP_GATE = 0.3
---- Grouping gate along the line of sight (× block_size), where a single tag's depth is poor.
+--- Grouping gate along the line of sight (× block_size), where a single tag's depth is poor...
 M.ALONG_GATE = 1.2
+--- ... or wider, `ALONG_K` standard deviations of the difference of the two tags' depths
+-- (each estimated as distance · σ / apparent size, σ the frame's corner noise).
+M.ALONG_K = 5
 --- Grouping gate on rotation: candidates whose block frames differ by less than this, modulo
 -- the cube's symmetries (radians).
 M.ROTATION_GATE = rad(60)
@@ -66,6 +69,9 @@ M.MERGE_FLOOR = 1
 M.ALPHA = 3e-4
 --- Floor of the corner noise variance estimate (px²).
 M.NOISE_FLOOR = 0.01
+--- When tracking, the noise estimate carries the earlier frames' evidence with this weight per
+-- frame (`previous.noise`), so that a frame of few tags is not judged by its own noise alone.
+M.NOISE_MEMORY = 0.8
 --- Default standard deviation (radians) of a block's tilt from `options.up`.
 M.UP_TOLERANCE = rad(2)
 --- Default standard deviation of a resting block's centre height from its level above
@@ -296,6 +302,14 @@ local function read_options(options)
     o.previous, problem = read_previous(options.previous)
     if not o.previous then return nil, problem end
     o.next_id = problem
+    local noise = options.previous.noise
+    if noise ~= nil then
+      if type(noise) ~= "table" or not (is_finite(noise.sse) and noise.sse >= 0
+        and is_finite(noise.dof) and noise.dof >= 0) then
+        return nil, "options.previous.noise: {sse =, dof =} (finite, >= 0) expected"
+      end
+      o.noise_sse, o.noise_dof = noise.sse, noise.dof
+    end
   end
   local tol = options.up_tolerance
   if tol ~= nil then
@@ -348,10 +362,14 @@ end
 -- Does candidate b of another detection agree with the block of candidate a? Returns a distance
 -- (smaller is better) and, when the faces are not known, the index of the face rotation G of b
 -- in a's block frame (b's tag frame written in a's block frame); or nil.
-local function agree(a, b, faces, block_size)
+local function agree(a, b, faces, block_size, sigma)
   local dx, dy, dz = b.x - a.x, b.y - a.y, b.z - a.z
   local d2 = dx * dx + dy * dy + dz * dz
   local pg, ag = M.PERP_GATE * block_size, M.ALONG_GATE * block_size
+  -- along the line of sight, what the two tags' depths allow (distance · σ / apparent size)
+  local sa, sb = a.depth * sigma, b.depth * sigma
+  local spread = M.ALONG_K * sqrt(sa * sa + sb * sb)
+  if spread > ag then ag = spread end
   if d2 > pg * pg + ag * ag then return nil end
   local mx, my, mz = a.x + b.x, a.y + b.y, a.z + b.z
   local along = (dx * mx + dy * my + dz * mz) / sqrt(mx * mx + my * my + mz * mz)
@@ -538,7 +556,7 @@ end
 -- For every candidate a of every detection s (key 2s + a), the other detections with a candidate
 -- that agrees with it: links[key][j] = {G, score, b} for the best such candidate b. Computed
 -- once a frame, each pair of candidates once.
-local function link_all(dets, block_size, faces)
+local function link_all(dets, block_size, faces, sigma)
   local links = {}
   for s = 1, #dets do
     for a = 1, #dets[s].cands do links[2 * s + a] = {} end
@@ -550,7 +568,7 @@ local function link_all(dets, block_size, faces)
       for a = 1, #ds.cands do
         local ca, row_a = ds.cands[a], links[2 * s + a]
         for b = 1, #dj.cands do
-          local score, k = agree(ca, dj.cands[b], faces, block_size)
+          local score, k = agree(ca, dj.cands[b], faces, block_size, sigma)
           if score then
             -- j seen from s's candidate a, and s seen from j's candidate b
             local link = row_a[j]
@@ -830,7 +848,9 @@ end
 --   raw_rotation = {{...}, ...}, error = px, tags = {i, ...}, faces = k, tag_faces = {"+x",
 --   ...}, orientation = "faces"|"up"|"track"|"error", alternative = {position, rotation,
 --   quaternion, error} or nil}`; the array's field `skipped` lists the detections not used,
---   `{index = i, reason = string}`, and `next_id` the id a new block would take
+--   `{index = i, reason = string}`, `next_id` the id a new block would take, and `noise`
+--   the corner noise evidence `{sse =, dof =}` (px², degrees of freedom) carried to the next
+--   frame
 -- @return nil, string when no detection gives a tag pose (the message says why)
 -- @raise `bad argument #n to 'solve' (...)` when an argument has the wrong type or range
 -- @usage
@@ -884,9 +904,17 @@ function M.solve(detections, camera, tag_size, block_size, options)
       else
         local d = { index = i, px = {}, cands = { candidate(pose, face_r, half_block) },
           face_r = face_r }
-        read_corners(det.corners, d.px)
+        local px = d.px
+        read_corners(det.corners, px)
         if pose.alternative then
           d.cands[2] = candidate(pose.alternative, face_r, half_block)
+        end
+        -- the relative depth error per pixel of corner noise: 1 / apparent size (px)
+        local area = 0.5 * abs((px[5] - px[1]) * (px[8] - px[4]) - (px[7] - px[3]) * (px[6] - px[2]))
+        local relative = 1 / sqrt(max(area, 1))
+        for a = 1, #d.cands do
+          local c = d.cands[a]
+          c.depth = sqrt(c.x * c.x + c.y * c.y + c.z * c.z) * relative
         end
         d.best_sse = d.cands[1].sse
         if d.cands[2] and d.cands[2].sse < d.best_sse then d.best_sse = d.cands[2].sse end
@@ -898,9 +926,17 @@ function M.solve(detections, camera, tag_size, block_size, options)
   if #dets == 0 and first_reason then
     return nil, "block: no detection gives a tag pose (" .. first_reason .. ")"
   end
-  local sigma2 = max(noise / max(#dets, 1), M.NOISE_FLOOR)
+  -- the corner noise: the single fits' squared errors (2 degrees of freedom each), and those
+  -- of earlier frames when tracking, fading by NOISE_MEMORY a frame
+  local noise_sse, noise_dof = 2 * noise, 2 * #dets
+  if ctx.noise_sse then
+    noise_sse = noise_sse + M.NOISE_MEMORY * ctx.noise_sse
+    noise_dof = noise_dof + M.NOISE_MEMORY * ctx.noise_dof
+  end
+  local sigma2 = max(noise_sse / max(noise_dof, 1), M.NOISE_FLOOR)
   ctx.sigma2 = sigma2
-  ctx.n, ctx.frame_sse = #dets, 2 * noise
+  -- (the F-test's second degrees of freedom, 2n, rounded down to even)
+  ctx.n, ctx.frame_sse = math.floor(0.5 * noise_dof), noise_sse
   ctx.prior_w = ctx.up and sqrt(sigma2) / ctx.up_tolerance or 0
   ctx.floor_w = sqrt(sigma2) / (ctx.floor_tolerance or M.FLOOR_TOLERANCE * block_size)
   ctx.block_size = block_size
@@ -913,7 +949,7 @@ function M.solve(detections, camera, tag_size, block_size, options)
   local remaining = #dets
   -- hypotheses by seed (kept while all their tags are free) and those fitted this frame
   local cache, fitted = {}, {}
-  local links = link_all(dets, block_size, faces)
+  local links = link_all(dets, block_size, faces, sqrt(sigma2))
   while remaining > 0 do
     local best = nil
     for s = 1, #dets do
@@ -1058,6 +1094,7 @@ function M.solve(detections, camera, tag_size, block_size, options)
   end
   out.skipped = skipped
   out.next_id = next_id
+  out.noise = { sse = noise_sse, dof = noise_dof }
   return out
 end
 
