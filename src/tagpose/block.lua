@@ -904,13 +904,14 @@ function M.solve(detections, camera, tag_size, block_size, options)
       else
         local d = { index = i, px = {}, cands = { candidate(pose, face_r, half_block) },
           face_r = face_r }
-        local px = d.px
-        read_corners(det.corners, px)
+        local q = d.px
+        read_corners(det.corners, q)
         if pose.alternative then
           d.cands[2] = candidate(pose.alternative, face_r, half_block)
         end
-        -- the relative depth error per pixel of corner noise: 1 / apparent size (px)
-        local area = 0.5 * abs((px[5] - px[1]) * (px[8] - px[4]) - (px[7] - px[3]) * (px[6] - px[2]))
+        -- the relative depth error per pixel of corner noise: 1 / apparent size (px), from the
+        -- quadrilateral's area (half the cross product of its diagonals)
+        local area = 0.5 * abs((q[5] - q[1]) * (q[8] - q[4]) - (q[7] - q[3]) * (q[6] - q[2]))
         local relative = 1 / sqrt(max(area, 1))
         for a = 1, #d.cands do
           local c = d.cands[a]
