@@ -227,7 +227,7 @@ describe("tagpose.block", function()
     it("chooses a one-face block's pose with options.up, where the error alone flips", function()
       local rng = geometry.rng(41)
       local flips_error, flips_up, alternatives = 0, 0, 0
-      for _ = 1, 150 do
+      for _ = 1, 100 do
         local r, _, tags, up = random_block(rng, 1, 0.5)
         local plain = solve(tags)[1]
         local with_up = solve(tags, { up = up })[1]
@@ -239,7 +239,7 @@ describe("tagpose.block", function()
       end
       assert.is_true(flips_error >= 5, "flips by error " .. flips_error)
       assert.is_true(flips_up <= 1, "flips with up " .. flips_up)
-      assert.is_true(alternatives > 100, "alternatives " .. alternatives)
+      assert.is_true(alternatives > 50, "alternatives " .. alternatives)
     end)
   end)
 
@@ -391,7 +391,7 @@ describe("tagpose.block", function()
       -- with noise, find scenes where a tag's best single pose is the flipped one
       local rng = geometry.rng(61)
       local seen = 0
-      for n = 1, 300 do
+      for n = 1, 120 do
         local r, t, tags = random_block(rng, 2, 0.5)
         for _, tag in ipairs(tags) do
           local own = solve({ tag })[1]
