@@ -229,6 +229,11 @@ function M.solve(corners, camera, tag_size, options)
   end
   local c1, k1, c2, k2
   tx, ty, tz, c1, k1 = refine.refine(camera, px, half, r1, tx, ty, tz)
+  if not (c1 < huge) and not problem then
+    -- the report's pose is no start (a corner behind the camera at round-off): the proximate one
+    local sx, sy, sz = square.proximate_pose(m, l1, l2, l3, l4, half, r1)
+    if sx then tx, ty, tz, c1, k1 = refine.refine(camera, px, half, r1, sx, sy, sz) end
+  end
   -- and the other local minimum of the planar ambiguity
   refine.mirror(r1, tx, ty, tz, r2)
   local ux, uy, uz
