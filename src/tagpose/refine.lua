@@ -78,6 +78,8 @@ local function residuals(px, C, Q)
   return sum
 end
 
+local cost_constants, cost_pose = {}, {}
+
 --- Sum of squared pixel residuals of a pose.
 -- @tparam table camera a checked camera
 -- @tparam {number,...} px observed pixels, flat
@@ -88,8 +90,6 @@ end
 -- @tparam number tz
 -- @treturn number the sum over the four corners of the squared pixel distance (`math.huge` when
 --   a corner is not in front of the camera)
-local cost_constants, cost_pose = {}, {}
-
 function M.cost(camera, px, half, r, tx, ty, tz)
   local Q = cost_pose
   Q[1], Q[2], Q[3], Q[4], Q[5], Q[6], Q[7], Q[8], Q[9] = r[1], r[4], r[7], r[2], r[5], r[8], tx,
