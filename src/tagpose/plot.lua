@@ -89,7 +89,8 @@ function M.ticks(lo, hi, count)
   local magnitude = 10 ^ floor(log10(raw) + 1e-9)
   local f = raw / magnitude
   local step = (f < 1.5 and 1 or f < 3 and 2 or f < 7 and 5 or 10) * magnitude
-  local decimals = max(0, -floor(log10(step) + 1e-9))
+  local decimals = -floor(log10(step) + 1e-9)
+  if decimals < 1 then decimals = 0 end -- and never -0, which would print as "-0"
   local ticks = {}
   local k = ceil(lo / step - 1e-9)
   local v = k * step
