@@ -161,6 +161,22 @@ describe("tagpose.plot", function()
       assert.truthy(svg:find(">tag 2<", 1, true))
     end)
 
+    it("renders with rsvg-convert", function()
+      local svg = plot.poses({ { label = "tagpose", entries = entries({ 1, 2 }, 40) },
+        { label = "truth", entries = entries({ 1, 2 }, 40, 0.001) } }, { rotation = "rpy" })
+      local path = run.write(os.tmpname(), svg)
+      local png = path .. ".png"
+      local out, status = run.run("rsvg-convert -o " .. run.quote(png) .. " " .. run.quote(path)
+        .. " 2>&1")
+      local f = io.open(png, "rb")
+      local head = f and f:read(8)
+      if f then f:close() end
+      os.remove(path)
+      os.remove(png)
+      assert.equal(0, status, out)
+      assert.equal("\137PNG\r\n\26\n", head)
+    end)
+
     it("draws roll, pitch and yaw in degrees when asked", function()
       local svg, shown = plot.poses({ { label = "a", entries = entries({ 3 }, 10) } },
         { rotation = "rpy", length_unit = "mm" })

@@ -110,7 +110,7 @@ local function label(v, decimals)
 end
 
 --- Roll, pitch and yaw of a rotation given as a quaternion.
--- The convention: Z-Y'-X'' intrinsic angles (yaw about z, then pitch about the new y, then
+-- The convention: intrinsic Z-Y-X angles (yaw about z, then pitch about the new y, then
 -- roll about the newest x) of the tag → camera rotation, so that
 -- `R = Rz(yaw) · Ry(pitch) · Rx(roll)`; equivalently, rotations about the fixed camera axes x,
 -- then y, then z. A tag seen face-on and upright (tag axes along the camera's) has all three
