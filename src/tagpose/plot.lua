@@ -24,7 +24,7 @@ local compat = require("tagpose.compat")
 local args = require("tagpose.args")
 
 local floor, ceil, abs, log, max = math.floor, math.ceil, math.abs, math.log, math.max
-local asin, deg, huge = math.asin, math.deg, math.huge
+local asin, deg, huge, sqrt = math.asin, math.deg, math.huge, math.sqrt
 local concat = table.concat
 local atan2, is_finite = compat.atan2, compat.is_finite
 
@@ -115,7 +115,9 @@ end
 -- `R = Rz(yaw) · Ry(pitch) · Rx(roll)`; equivalently, rotations about the fixed camera axes x,
 -- then y, then z. A tag seen face-on and upright (tag axes along the camera's) has all three
 -- at 0; pitch is in `[-π/2, π/2]`, roll and yaw in `[-π, π]`. At pitch `±π/2` (gimbal lock)
--- roll is 0 and yaw takes the whole rotation about z.
+-- roll is 0 and yaw takes the whole rotation about z. Mind the camera's axes (x right, y down,
+-- z forward): roll turns the tag about the horizontal image axis, pitch about the vertical one
+-- (what a ground robot calls a heading change) and yaw about the line of sight.
 -- @tparam number w
 -- @tparam number x
 -- @tparam number y
@@ -127,7 +129,7 @@ end
 -- local roll, pitch, yaw = plot.roll_pitch_yaw(pose.quaternion.w, pose.quaternion.x,
 --   pose.quaternion.y, pose.quaternion.z)
 function M.roll_pitch_yaw(w, x, y, z)
-  local n = (w * w + x * x + y * y + z * z) ^ 0.5
+  local n = sqrt(w * w + x * x + y * y + z * z)
   w, x, y, z = w / n, x / n, y / n, z / n
   local s = 2 * (w * y - z * x)
   if s >= 1 - 1e-12 or s <= -1 + 1e-12 then
