@@ -30,6 +30,7 @@ build = {
     ["tagpose.compat"] = "src/tagpose/compat.lua",
     ["tagpose.linsolve"] = "src/tagpose/linsolve.lua",
     ["tagpose.log"] = "src/tagpose/log.lua",
+    ["tagpose.plot"] = "src/tagpose/plot.lua",
     ["tagpose.pose"] = "src/tagpose/pose.lua",
     ["tagpose.refine"] = "src/tagpose/refine.lua",
     ["tagpose.rotation"] = "src/tagpose/rotation.lua",
