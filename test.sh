@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # tagpose's whole check, as CI runs it: install what is missing (Debian packages), lint, run the
-# specs on every Lua, and check that the rockspec installs the library that then loads.
+# specs on every Lua, build the LDoc reference, lint the rockspecs, and check that the rockspec
+# installs the library that then loads.
 # Ends with one line "N passed, N failed" summing every run.
 #
 #   ./test.sh            everything
@@ -9,7 +10,10 @@ set -u
 cd "$(dirname "$0")" || exit 1
 
 VMS=${*:-"lua5.1 lua5.2 lua5.3 lua5.4 luajit"}
-PACKAGES="lua5.1 lua5.2 lua5.3 lua5.4 luajit lua-busted lua-check luarocks"
+# libxml2-utils: xmllint checks the plots; librsvg2-bin: rsvg-convert renders them; lua-ldoc
+# and lua-discount (its Markdown): the API reference
+PACKAGES="lua5.1 lua5.2 lua5.3 lua5.4 luajit lua-busted lua-check luarocks libxml2-utils
+  librsvg2-bin lua-ldoc lua-discount"
 
 missing=""
 for p in $PACKAGES; do
@@ -49,6 +53,27 @@ for vm in $VMS; do
   echo "$vm: $ok passed, $nok failed"
   pass "$ok"
   fail "$nok"
+done
+
+echo "== ldoc builds the API reference without warnings"
+doc=$(mktemp -d)
+ldoc --fatalwarnings -d "$doc/html" . >"$doc/log" 2>&1
+status=$?
+# anything but its two progress lines is a warning (or a missing Markdown processor)
+if [ "$status" -eq 0 ] && [ -f "$doc/html/index.html" ] \
+    && ! grep -v -e '^reading configuration from ' -e '^output written to ' "$doc/log" | grep -q .
+then
+  pass 1
+else
+  cat "$doc/log"
+  echo "ldoc failed (exit $status)"
+  fail 1
+fi
+rm -rf "$doc"
+
+for rockspec in rockspec/*.rockspec; do
+  echo "== luarocks lint $rockspec"
+  if luarocks lint "$rockspec"; then pass 1; else fail 1; fi
 done
 
 echo "== rockspec installs into a fresh tree and is what require loads"

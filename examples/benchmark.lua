@@ -3,9 +3,10 @@
 --   lua5.4 examples/benchmark.lua [DATASET_DIR] [--method refined|seed] [--passes N]
 --
 -- DATASET_DIR is a directory in the format of shared/bench/dev (camera.lua, corners.csv);
--- default: examples/data/approach (bundled). Prints µs per pose (median over passes, after a
--- warm-up pass), bytes allocated per pose with the collector stopped (fresh result tables, and
--- with options.into reusing one table), and the solveQuad and refinement iteration counts.
+-- default: the bundled example (examples/data/camera.lua and approach.csv). Prints µs per pose
+-- (median over passes, after a warm-up pass), bytes allocated per pose with the collector
+-- stopped (fresh result tables, and with options.into reusing one table), and the solveQuad
+-- and refinement iteration counts.
 
 package.path = "./src/?.lua;./src/?/init.lua;" .. package.path
 local tagpose = require("tagpose")
@@ -31,10 +32,12 @@ do
     i = i + 1
   end
 end
-local dir = args.dir or "examples/data/approach"
+local dir = args.dir or "examples/data"
+local corners_file = args.dir and dir .. "/corners.csv" or dir .. "/approach.csv"
+local name = args.dir and dir:match("([^/]+)/*$") or "approach"
 
 local camera = assert(log.read_camera(dir .. "/camera.lua"))
-local rows = assert(log.read_corners(dir .. "/corners.csv"))
+local rows = assert(log.read_corners(corners_file))
 local n = #rows
 local corners = {}
 for i = 1, n do corners[i] = rows[i].corners end
@@ -93,5 +96,5 @@ local ok = n - failed
 local vm = rawget(_G, "jit") and rawget(_G, "jit").version or _VERSION
 print(("%s | %s | method %s | %d rows | %.2f µs/pose | %.0f B/pose | %.0f B/pose with into"
   .. " | solveQuad mean %.2f max %d | refine mean %.2f max %d | %d failed"):format(
-  vm, dir:match("([^/]+)/*$"), args.method or "refined", n, median / n * 1e6, fresh, reused,
+  vm, name, args.method or "refined", n, median / n * 1e6, fresh, reused,
   sq / ok, sq_max, rf / math.max(ok, 1), rf_max, failed))

@@ -32,5 +32,12 @@ print("rotation (tag -> camera)")
 for i = 1, 3 do
   print(("  % .4f  % .4f  % .4f"):format(r[i][1], r[i][2], r[i][3]))
 end
-print(("reprojection error %.3f px, %d solveQuad iterations"):format(pose.error,
-  pose.iterations))
+print(("reprojection error %.3f px (%d solveQuad iterations, %d refinement steps)"):format(
+  pose.error, pose.iterations, pose.refine_iterations))
+-- the other pose a square seen in perspective can have (the planar ambiguity), if any
+local alt = pose.alternative
+if alt then
+  local a = alt.quaternion
+  print(("alternative: quaternion w = %.4f  x = %.4f  y = %.4f  z = %.4f, error %.3f px"):format(
+    a.w, a.x, a.y, a.z, alt.error))
+end

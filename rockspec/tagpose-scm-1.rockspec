@@ -32,6 +32,7 @@ build = {
     ["tagpose.cube"] = "src/tagpose/cube.lua",
     ["tagpose.linsolve"] = "src/tagpose/linsolve.lua",
     ["tagpose.log"] = "src/tagpose/log.lua",
+    ["tagpose.plot"] = "src/tagpose/plot.lua",
     ["tagpose.pose"] = "src/tagpose/pose.lua",
     ["tagpose.refine"] = "src/tagpose/refine.lua",
     ["tagpose.rigid"] = "src/tagpose/rigid.lua",

@@ -601,6 +601,29 @@ describe("tagpose.block", function()
       end
     end)
 
+    it("skips a malformed detection (a detector's glitch), and says why", function()
+      local rng = geometry.rng(10)
+      local _, t, tags = random_block(rng, 2)
+      local dets = detections_of(tags)
+      table.insert(dets, 1, 5)
+      dets[#dets + 1] = { id = 0 }
+      dets[#dets + 1] = { id = 0, corners = { { 1, 2 }, { 3, 4 }, { 5, "6" }, { 7, 8 } } }
+      local blocks = assert(tagpose.block.solve(dets, camera, TAG, BLOCK))
+      assert.equal(1, #blocks)
+      assert.vector_near(t, blocks[1].position, 1e-9)
+      assert.same({
+        { index = 1, reason = "block: table {id =, corners =} expected, got number" },
+        { index = 4, reason = "block: corners: table of four corners expected, got nil" },
+        { index = 5, reason = "block: corner 3: numbers {u, v} or {x =, y =} expected, "
+          .. "got number 5 and string 6" },
+      }, blocks.skipped)
+      local none, err = tagpose.block.solve({ { id = 0, corners = { { 1, 2 } } } }, camera, TAG,
+        BLOCK)
+      assert.is_nil(none)
+      assert.equal("block: no detection gives a tag pose (detection 1: block: corners: four "
+        .. "corners expected, got 1)", err)
+    end)
+
     it("returns nil and a message when no detection gives a pose", function()
       local blocks, err = tagpose.block.solve({ { id = 0, corners = { { 1, 1 }, { 2, 2 },
         { 3, 3 }, { 4, 4 } } } }, camera, TAG, BLOCK)
@@ -640,11 +663,6 @@ describe("tagpose.block", function()
     local cases = {
       { function() tagpose.block.solve(nil, camera, TAG, BLOCK) end,
         "bad argument #1 to 'solve' (array of detections expected, got nil)" },
-      { function() tagpose.block.solve({ 5 }, camera, TAG, BLOCK) end,
-        "bad argument #1 to 'solve' (detection 1: table {id =, corners =} expected, got number)" },
-      { function() tagpose.block.solve({ { id = 0, corners = { { 1, 2 } } } }, camera, TAG,
-        BLOCK) end,
-        "bad argument #1 to 'solve' (detection 1: corners: four corners expected, got 1)" },
       { function() tagpose.block.solve(good, { fx = 1 }, TAG, BLOCK) end,
         "bad argument #2 to 'solve' (camera.fy: positive number expected, got nil)" },
       { function() tagpose.block.solve(good, camera, -1, BLOCK) end,

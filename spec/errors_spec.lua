@@ -67,6 +67,21 @@ describe("tagpose.solve() errors", function()
       { function() tagpose.solve(good, camera, 1, { max_iterations = 2.5 }) end,
         "bad argument #4 to 'solve' (options.max_iterations: positive integer expected, "
           .. "got number 2.5)" },
+      { function() tagpose.solve(good, camera, 1, { prior = 3 }) end,
+        "bad argument #4 to 'solve' (options.prior: pose table expected, got number)" },
+      { function() tagpose.solve(good, camera, 1, { prior = { quaternion = { w = 0 / 0 } } }) end,
+        "bad argument #4 to 'solve' (options.prior: pose with a finite quaternion or rotation "
+          .. "expected)" },
+      { function() tagpose.solve(good, camera, 1, { into = "pose" }) end,
+        "bad argument #4 to 'solve' (options.into: table expected, got string)" },
+      { function() tagpose.solve(good, { fx = 1, fy = 1, cx = 0, cy = 0, model = "kb" }, 1) end,
+        "bad argument #2 to 'solve' (camera.model: 'pinhole' or 'fisheye' expected, "
+          .. "got string kb)" },
+      { function()
+          tagpose.solve(good, { fx = 1, fy = 1, cx = 0, cy = 0, distortion = { k1 = "a" } }, 1)
+        end,
+        "bad argument #2 to 'solve' (camera.distortion.k1: finite number expected, "
+          .. "got string a)" },
       { function() tagpose.solve(good, camera, 1, { max_iterations = 0 }) end,
         "bad argument #4 to 'solve' (options.max_iterations: positive integer expected, "
           .. "got number 0)" },

@@ -108,6 +108,25 @@ describe("tagpose.refine", function()
     end)
   end)
 
+  describe("linearise_unrolled() and linearise_looped()", function()
+    it("build the same normal equations (each VM runs the faster one)", function()
+      for _ = 1, 50 do
+        local s = 0.05
+        local r, t = geometry.random_pose(rng, camera, s, { max_tilt = rad(80) })
+        local px = flat_pixels(noisy(rng, geometry.project(camera, r, t, s), 2))
+        local C = { camera.fx, camera.fy, camera.cx, camera.cy, s / 2, 0, 0, 0, 0, 0, 0, 0, 0, 0 }
+        local Q = { r[1], r[4], r[7], r[2], r[5], r[8], t[1], t[2], t[3] }
+        local A, B = {}, {}
+        local sa = refine.linearise_unrolled(A, px, C, Q)
+        local sb = refine.linearise_looped(B, px, C, Q)
+        assert.near(sa, sb, 1e-12 * sa)
+        for k = 1, 27 do
+          assert.near(A[k], B[k], 1e-9 * (math.abs(A[k]) + 1), "entry " .. k)
+        end
+      end
+    end)
+  end)
+
   describe("mirror()", function()
     it("reflects the tag's normal about the line of sight and keeps a proper rotation", function()
       for _ = 1, 20 do

@@ -163,7 +163,7 @@ local function copy9(src, dst)
   return dst
 end
 
----------------------------------------------------------------------------------------------
+-- ------------------------------------------------------------------------------------------
 -- Arguments
 
 -- The pixel corners of a detection into the flat array out; or false and the misuse.
@@ -343,7 +343,7 @@ local function read_options(options)
   return o
 end
 
----------------------------------------------------------------------------------------------
+-- ------------------------------------------------------------------------------------------
 -- Candidates
 
 -- A candidate of a detection from a tag pose: its block rotation `r` (flat), its centre and the
@@ -401,7 +401,7 @@ local function face_points(g, half, half_block, first)
   points[o + 10], points[o + 11], points[o + 12] = nx - xx - yx, ny - xy - yy, nz - xz - yz
 end
 
----------------------------------------------------------------------------------------------
+-- ------------------------------------------------------------------------------------------
 -- The frame
 
 -- Fill `pixels` and `points` for the members of a hypothesis.
@@ -725,7 +725,7 @@ local function single(s, dets, camera, half, half_block, ctx)
   return first, second, how
 end
 
----------------------------------------------------------------------------------------------
+-- ------------------------------------------------------------------------------------------
 -- Results
 
 local function pose_table(r, x, y, z, err)
@@ -853,6 +853,8 @@ end
 --   frame
 -- @return nil, string when no detection gives a tag pose (the message says why)
 -- @raise `bad argument #n to 'solve' (...)` when an argument has the wrong type or range
+--   (`detections` not a table, the camera, the sizes, the options; a malformed detection
+--   inside the array is skipped instead, with its reason)
 -- @usage
 -- local blocks = tagpose.block.solve({{id = 0, corners = c1}, {id = 0, corners = c2}},
 --   camera, 0.024, 0.055, {up = {x = 0, y = -0.9, z = -0.4}})
@@ -876,15 +878,6 @@ function M.solve(detections, camera, tag_size, block_size, options)
   ctx, problem = read_options(options)
   if not ctx then arg_error(5, problem) end
   local faces = ctx.faces
-  local px = {}
-  for i = 1, #detections do
-    local det = detections[i]
-    if type(det) ~= "table" then
-      arg_error(1, "detection " .. i .. ": table {id =, corners =} expected, got " .. type(det))
-    end
-    local ok, why = read_corners(det.corners, px)
-    if not ok then arg_error(1, "detection " .. i .. ": " .. why) end
-  end
 
   local tagpose = require("tagpose")
   local half, half_block = 0.5 * tag_size, 0.5 * block_size
@@ -892,8 +885,20 @@ function M.solve(detections, camera, tag_size, block_size, options)
   local noise, first_reason = 0, nil
   for i = 1, #detections do
     local det = detections[i]
-    local face_r = faces and faces[det.id]
-    if faces and not face_r then
+    -- a detection that is not one (a detector's glitch) is reported, not raised: the frame's
+    -- other tags still make blocks
+    local malformed = nil
+    if type(det) ~= "table" then
+      malformed = "table {id =, corners =} expected, got " .. type(det)
+    else
+      local ok, why = read_corners(det.corners, work)
+      if not ok then malformed = why end
+    end
+    local face_r = not malformed and faces and faces[det.id]
+    if malformed then
+      skipped[#skipped + 1] = { index = i, reason = "block: " .. malformed }
+      first_reason = first_reason or ("detection " .. i .. ": block: " .. malformed)
+    elseif faces and not face_r then
       skipped[#skipped + 1] = { index = i,
         reason = "block: tag id " .. tostring(det.id) .. " is on no face of options.faces" }
     else

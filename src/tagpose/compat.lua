@@ -36,6 +36,10 @@ end
 
 local huge = math.huge
 
+--- True on LuaJIT (for the few kernels whose fastest form differs between the VMs; the
+-- results never do).
+M.jit = rawget(_G, "jit") ~= nil
+
 --- True when `v` is a number that is neither NaN nor ±infinity.
 -- @tparam any v
 -- @treturn boolean

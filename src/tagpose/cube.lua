@@ -52,16 +52,21 @@ end
 
 local ROTATIONS = M.ROTATIONS
 
---- The faces, by name: `normal` (outward, block frame) and `rotation` (`R_f`, the tag frame in
--- the block frame, flat). Constants.
-M.FACES = {
-  ["+x"] = { normal = { 1, 0, 0 }, rotation = { 0, 0, -1, 1, 0, 0, 0, -1, 0 } },
-  ["-x"] = { normal = { -1, 0, 0 }, rotation = { 0, 0, 1, -1, 0, 0, 0, -1, 0 } },
-  ["+y"] = { normal = { 0, 1, 0 }, rotation = { -1, 0, 0, 0, 0, -1, 0, -1, 0 } },
-  ["-y"] = { normal = { 0, -1, 0 }, rotation = { 1, 0, 0, 0, 0, 1, 0, -1, 0 } },
-  ["+z"] = { normal = { 0, 0, 1 }, rotation = { 1, 0, 0, 0, -1, 0, 0, 0, -1 } },
-  ["-z"] = { normal = { 0, 0, -1 }, rotation = { 1, 0, 0, 0, 1, 0, 0, 0, 1 } },
-}
+--- The faces, by name (`"+x"`, `"-x"`, `"+y"`, `"-y"`, `"+z"`, `"-z"`): each
+-- `{normal = {x, y, z}, rotation = R_f}`, the outward normal and the tag frame in the block
+-- frame (flat), as the module's header describes. Constants.
+M.FACES = {}
+
+local function face(name, normal, r)
+  M.FACES[name] = { normal = normal, rotation = r }
+end
+
+face("+x", { 1, 0, 0 }, { 0, 0, -1, 1, 0, 0, 0, -1, 0 })
+face("-x", { -1, 0, 0 }, { 0, 0, 1, -1, 0, 0, 0, -1, 0 })
+face("+y", { 0, 1, 0 }, { -1, 0, 0, 0, 0, -1, 0, -1, 0 })
+face("-y", { 0, -1, 0 }, { 1, 0, 0, 0, 0, 1, 0, -1, 0 })
+face("+z", { 0, 0, 1 }, { 1, 0, 0, 0, -1, 0, 0, 0, -1 })
+face("-z", { 0, 0, -1 }, { 1, 0, 0, 0, 1, 0, 0, 0, 1 })
 
 local NORMAL_NAMES = { "+x", "-x", "+y", "-y", "+z", "-z" }
 

@@ -27,6 +27,11 @@ local M = {
   camera = camera_model,
 }
 
+--- solveQuad's threshold when it only starts the refined method (unless `options.tolerance`
+-- says otherwise): the refinement converges to the same pose from any start this close, so
+-- solving the quadratics to the report's 1e-10 would be work thrown away.
+M.REFINED_TOLERANCE = 1e-7
+
 -- scratch, written in place on every solve and never handed out
 local px = {} -- pixel corners, flat
 local m = {} -- normalised, undistorted corners, flat
@@ -111,7 +116,7 @@ end
 -- Read the options; or nil and a description of the misuse.
 local function read_options(options)
   if options == nil then
-    return "refined", solvequad.TOLERANCE, solvequad.MAX_ITERATIONS
+    return "refined", M.REFINED_TOLERANCE, solvequad.MAX_ITERATIONS
   end
   if type(options) ~= "table" then return nil, "options table expected, got " .. type(options) end
   local method = options.method
@@ -122,7 +127,7 @@ local function read_options(options)
   end
   local tol = options.tolerance
   if tol == nil then
-    tol = solvequad.TOLERANCE
+    tol = method == "seed" and solvequad.TOLERANCE or M.REFINED_TOLERANCE
   elseif not is_positive(tol) then
     return nil, "options.tolerance: positive number expected, got " .. describe(tol)
   end
@@ -169,7 +174,8 @@ end
 --   - `method`: `"refined"` (default) or `"seed"` (the report's method exactly);
 --   - `prior`: the pose this tag had in the previous frame, for tracking (`tagpose.track`);
 --   - `into`: a pose table from an earlier call to fill instead of allocating a new one;
---   - `tolerance` (solveQuad's threshold, default 1e-10), `max_iterations` (default 100).
+--   - `tolerance`: solveQuad's threshold (default 1e-10 for `"seed"`, `REFINED_TOLERANCE`
+--     for `"refined"`), `max_iterations`: its bound (default 100).
 -- @treturn table pose `{position = {x, y, z}, rotation = {{...}, {...}, {...}},
 --   quaternion = {w, x, y, z}, error = px, iterations = n, refine_iterations = n,
 --   alternative = pose or nil, track = state}`
@@ -190,10 +196,18 @@ function M.solve(corners, camera, tag_size, options)
   if not method then arg_error(4, tol) end
   if bad ~= true then return nil, "tagpose: corner " .. bad .. " is not finite" end
 
-  for i = 1, 4 do
-    local x, y = camera_model.normalise(camera, px[2 * i - 1], px[2 * i])
-    if not x then return nil, y .. " (corner " .. i .. ")" end
-    m[2 * i - 1], m[2 * i] = x, y
+  if camera.distortion == nil then
+    local fx, fy, cx, cy = camera.fx, camera.fy, camera.cx, camera.cy
+    m[1], m[2], m[3], m[4] = (px[1] - cx) / fx, (px[2] - cy) / fy, (px[3] - cx) / fx,
+      (px[4] - cy) / fy
+    m[5], m[6], m[7], m[8] = (px[5] - cx) / fx, (px[6] - cy) / fy, (px[7] - cx) / fx,
+      (px[8] - cy) / fy
+  else
+    for i = 1, 4 do
+      local x, y = camera_model.normalise(camera, px[2 * i - 1], px[2 * i])
+      if not x then return nil, y .. " (corner " .. i .. ")" end
+      m[2 * i - 1], m[2 * i] = x, y
+    end
   end
   local l1, l2, l3, l4 = square.shape(m)
   if not l1 then return nil, l2 end
@@ -229,6 +243,11 @@ function M.solve(corners, camera, tag_size, options)
   end
   local c1, k1, c2, k2
   tx, ty, tz, c1, k1 = refine.refine(camera, px, half, r1, tx, ty, tz)
+  if not (c1 < huge) and not problem then
+    -- the report's pose is no start (a corner behind the camera at round-off): the proximate one
+    local sx, sy, sz = square.proximate_pose(m, l1, l2, l3, l4, half, r1)
+    if sx then tx, ty, tz, c1, k1 = refine.refine(camera, px, half, r1, sx, sy, sz) end
+  end
   -- and the other local minimum of the planar ambiguity
   refine.mirror(r1, tx, ty, tz, r2)
   local ux, uy, uz

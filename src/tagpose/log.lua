@@ -141,6 +141,94 @@ function M.pose_line(frame, tag, pose)
     num(q.y), num(q.z), num(pose.error), num(pose.iterations) }, ",")
 end
 
+--- Write a whole pose log: the header, then one line per entry, in the entries' order.
+-- @tparam string|file target a path (created or truncated) or an open file (left open)
+-- @tparam {table,...} entries `{frame =, tag =, pose =}` each; a `nil` pose is a row that
+--   failed and keeps only its frame and tag
+-- @treturn int the number of rows written
+-- @return nil, string when the file cannot be written
+function M.write_poses(target, entries)
+  local f, owned = target, false
+  if type(target) == "string" then
+    local err
+    f, err = io.open(target, "w")
+    if not f then return nil, "log: " .. tostring(err) end
+    owned = true
+  end
+  local lines = { table.concat(M.POSE_COLUMNS, ",") }
+  for i = 1, #entries do
+    local e = entries[i]
+    lines[i + 1] = M.pose_line(e.frame, e.tag, e.pose)
+  end
+  lines[#lines + 1] = ""
+  local ok, err = f:write(table.concat(lines, "\n"))
+  if owned then
+    local closed, cerr = f:close()
+    if ok and not closed then ok, err = nil, cerr end
+  end
+  if not ok then return nil, "log: " .. tostring(err) end
+  return #entries
+end
+
+local POSE_FIELDS = { "x", "y", "z", "qw", "qx", "qy", "qz" }
+
+--- Read a pose log, or a truth file of the data sets (`frame,tag,x,y,z,qw,qx,qy,qz`: the
+-- `error` and `iterations` columns are optional).
+-- A row whose pose fields are all empty is a failed row: it is returned with `pose = nil`. A
+-- row with some pose fields empty or not numbers, or without a numeric frame and tag, is
+-- reported in the problems list and left out.
+-- @tparam string|file source a path or an open file
+-- @treturn {table,...} entries `{frame =, tag =, line =, pose =}` in file order, each `pose`
+--   (or `nil`) shaped as a `tagpose.solve` result: `{position = {x, y, z},
+--   quaternion = {w, x, y, z}, error =, iterations =}` (the quaternion as written, not
+--   normalised)
+-- @treturn {{line=int, reason=string},...} problems
+-- @return nil, string when the file cannot be read or lacks a column
+function M.read_poses(source)
+  local required = { "frame", "tag" }
+  for i = 1, #POSE_FIELDS do required[#required + 1] = POSE_FIELDS[i] end
+  local rows, header, problems = M.read_csv(source, required)
+  if not rows then return nil, header end
+  local out = {}
+  for _, row in ipairs(rows) do
+    local bad, empty = nil, 0
+    for _, name in ipairs(required) do
+      local v = row[name]
+      if v == nil then
+        empty = empty + 1
+        if name == "frame" or name == "tag" then bad = "column " .. name .. " is empty" end
+      elseif type(v) ~= "number" then
+        bad = bad or "column " .. name .. " is not a number"
+      end
+    end
+    if not bad and empty > 0 and empty < #POSE_FIELDS then
+      for _, name in ipairs(POSE_FIELDS) do
+        if row[name] == nil then
+          bad = "column " .. name .. " is empty"
+          break
+        end
+      end
+    end
+    if bad then
+      problems[#problems + 1] = { line = row.line, reason = bad }
+    else
+      local pose = nil
+      if empty == 0 then
+        local e, n = row.error, row.iterations
+        pose = {
+          position = { x = row.x, y = row.y, z = row.z },
+          quaternion = { w = row.qw, x = row.qx, y = row.qy, z = row.qz },
+          error = type(e) == "number" and e or nil,
+          iterations = type(n) == "number" and n or nil,
+        }
+      end
+      out[#out + 1] = { frame = row.frame, tag = row.tag, line = row.line, pose = pose }
+    end
+  end
+  table.sort(problems, function(a, b) return a.line < b.line end)
+  return out, problems
+end
+
 --- Read a camera file (a Lua file returning a table), without giving it access to anything.
 -- @tparam string path
 -- @treturn table the camera

@@ -17,7 +17,7 @@ local to_quaternion = rotation.to_quaternion
 
 local M = {}
 
---- x and y of the corners in the tag frame, per unit half side, in detection order.
+-- x and y of the corners in the tag frame, per unit half side, in detection order
 M.CORNER_X = { -1, 1, 1, -1 }
 M.CORNER_Y = { 1, 1, -1, -1 }
 

@@ -22,6 +22,7 @@
 -- @module tagpose.refine
 
 local linsolve = require("tagpose.linsolve")
+local compat = require("tagpose.compat")
 local camera_model = require("tagpose.camera")
 
 local sqrt = math.sqrt
@@ -77,6 +78,8 @@ local function residuals(px, C, Q)
   return sum
 end
 
+local cost_constants, cost_pose = {}, {}
+
 --- Sum of squared pixel residuals of a pose.
 -- @tparam table camera a checked camera
 -- @tparam {number,...} px observed pixels, flat
@@ -87,8 +90,6 @@ end
 -- @tparam number tz
 -- @treturn number the sum over the four corners of the squared pixel distance (`math.huge` when
 --   a corner is not in front of the camera)
-local cost_constants, cost_pose = {}, {}
-
 function M.cost(camera, px, half, r, tx, ty, tz)
   local Q = cost_pose
   Q[1], Q[2], Q[3], Q[4], Q[5], Q[6], Q[7], Q[8], Q[9] = r[1], r[4], r[7], r[2], r[5], r[8], tx,
@@ -98,11 +99,13 @@ end
 
 -- The normal equations H δ = -g of the pose Q (axes a, b; t), accumulated into N as
 -- {h11, h12, ..., h16, h22, ..., h66, g1, ..., g6} (upper triangle row by row), and the sum of
--- squared residuals (math.huge when a corner is not in front of the camera). The sums live in
--- the table, not in 27 locals: LuaJIT cannot compile a loop exit with that many live values
--- (PUC Lua pays about a tenth more for it). The pose, too, travels in tables (P, Q) so the
--- refinement loop carries few values.
-local function linearise(N, px, C, Q)
+-- squared residuals (math.huge when a corner is not in front of the camera), for any lens.
+-- Per corner, with Y = R·c the corner relative to the tag centre, e = ∂residual/∂X for its
+-- camera point X, the residual's Jacobian row over (δω, δt) is (Y × e, e); H += j jᵀ, g += j r.
+-- For a pinhole, e_u = (fx/z)·(1, 0, -pu) and e_v = (fy/z)·(0, 1, -pv) give the rows written
+-- out below. The sums live in the table: LuaJIT cannot compile a loop that leaves with 27 live
+-- accumulators.
+local function linearise_looped(N, px, C, Q)
   local fx, fy, cx, cy, half, kind = C[1], C[2], C[3], C[4], C[5], C[6]
   local qax, qay, qaz, qbx, qby, qbz, qx, qy, qz = Q[1], Q[2], Q[3], Q[4], Q[5], Q[6], Q[7], Q[8],
     Q[9]
@@ -170,6 +173,127 @@ local function linearise(N, px, C, Q)
   return s
 end
 
+-- The normal equations H δ = -g of the pose Q (axes a, b; t) for a pinhole camera, into N as
+-- {h11, h12, ..., h16, h22, ..., h66, g1, ..., g6} (upper triangle row by row), and the sum of
+-- squared residuals (math.huge when a corner is not in front of the camera).
+--
+-- Per corner, with Y = R·c the corner relative to the tag centre and (pu, pv) its normalised
+-- projection, the Jacobian rows of its two residuals over (δω, δt) are
+--   u = (fx/z)·(-pu·Y2, Y3 + pu·Y1, -Y2, 1, 0, -pu),
+--   v = (fy/z)·(-pv·Y2 - Y3, pv·Y1, Y1, 0, 1, -pv),
+-- and H += u uᵀ + v vᵀ, g += u·ru + v·rv (zeros skipped: h45 stays 0). The corners c = (∓h, ±h)
+-- give Y = ±A ± B, A and B half a side along the tag's axes. The same sums as
+-- linearise_looped's pinhole case (a spec checks it), with the four corners written out and
+-- the sums on locals: the fastest form on PUC Lua, and one LuaJIT cannot compile (too many live
+-- values in one trace), so each VM gets its own (see `linearise` below).
+local function linearise_unrolled(N, px, C, Q)
+  local fx, fy, cx, cy, half = C[1], C[2], C[3], C[4], C[5]
+  local ax, ay, az = half * Q[1], half * Q[2], half * Q[3]
+  local bx, by, bz = half * Q[4], half * Q[5], half * Q[6]
+  local qx, qy, qz = Q[7], Q[8], Q[9]
+  local h11, h12, h13, h14, h15, h16, h22, h23, h24, h25, h26 = 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0
+  local h33, h34, h35, h36, h44, h46, h55, h56, h66 = 0, 0, 0, 0, 0, 0, 0, 0, 0
+  local g1, g2, g3, g4, g5, g6 = 0, 0, 0, 0, 0, 0
+  local s = 0
+  local y1, y2, y3, z, iz, pu, pv, ru, rv, fa, fb, u1, u2, u3, u6, v1, v2, v3, v6
+  -- corner 1: Y = B - A
+  y1, y2, y3 = bx - ax, by - ay, bz - az
+  z = y3 + qz
+  if not (z > 0) then return huge end
+  iz = 1 / z
+  pu, pv = (y1 + qx) * iz, (y2 + qy) * iz
+  ru, rv = fx * pu + cx - px[1], fy * pv + cy - px[2]
+  s = s + ru * ru + rv * rv
+  fa, fb = fx * iz, fy * iz
+  u1, u2, u3, u6 = -fa * pu * y2, fa * (y3 + pu * y1), -fa * y2, -fa * pu
+  v1, v2, v3, v6 = -fb * (pv * y2 + y3), fb * pv * y1, fb * y1, -fb * pv
+  h11, h12, h13 = h11 + u1 * u1 + v1 * v1, h12 + u1 * u2 + v1 * v2, h13 + u1 * u3 + v1 * v3
+  h14, h15, h16 = h14 + u1 * fa, h15 + v1 * fb, h16 + u1 * u6 + v1 * v6
+  h22, h23, h24 = h22 + u2 * u2 + v2 * v2, h23 + u2 * u3 + v2 * v3, h24 + u2 * fa
+  h25, h26, h33 = h25 + v2 * fb, h26 + u2 * u6 + v2 * v6, h33 + u3 * u3 + v3 * v3
+  h34, h35, h36 = h34 + u3 * fa, h35 + v3 * fb, h36 + u3 * u6 + v3 * v6
+  h44, h46, h55, h56 = h44 + fa * fa, h46 + fa * u6, h55 + fb * fb, h56 + fb * v6
+  h66, g1, g2 = h66 + u6 * u6 + v6 * v6, g1 + u1 * ru + v1 * rv, g2 + u2 * ru + v2 * rv
+  g3, g4, g5, g6 = g3 + u3 * ru + v3 * rv, g4 + fa * ru, g5 + fb * rv, g6 + u6 * ru + v6 * rv
+  -- corner 2: Y = A + B
+  y1, y2, y3 = ax + bx, ay + by, az + bz
+  z = y3 + qz
+  if not (z > 0) then return huge end
+  iz = 1 / z
+  pu, pv = (y1 + qx) * iz, (y2 + qy) * iz
+  ru, rv = fx * pu + cx - px[3], fy * pv + cy - px[4]
+  s = s + ru * ru + rv * rv
+  fa, fb = fx * iz, fy * iz
+  u1, u2, u3, u6 = -fa * pu * y2, fa * (y3 + pu * y1), -fa * y2, -fa * pu
+  v1, v2, v3, v6 = -fb * (pv * y2 + y3), fb * pv * y1, fb * y1, -fb * pv
+  h11, h12, h13 = h11 + u1 * u1 + v1 * v1, h12 + u1 * u2 + v1 * v2, h13 + u1 * u3 + v1 * v3
+  h14, h15, h16 = h14 + u1 * fa, h15 + v1 * fb, h16 + u1 * u6 + v1 * v6
+  h22, h23, h24 = h22 + u2 * u2 + v2 * v2, h23 + u2 * u3 + v2 * v3, h24 + u2 * fa
+  h25, h26, h33 = h25 + v2 * fb, h26 + u2 * u6 + v2 * v6, h33 + u3 * u3 + v3 * v3
+  h34, h35, h36 = h34 + u3 * fa, h35 + v3 * fb, h36 + u3 * u6 + v3 * v6
+  h44, h46, h55, h56 = h44 + fa * fa, h46 + fa * u6, h55 + fb * fb, h56 + fb * v6
+  h66, g1, g2 = h66 + u6 * u6 + v6 * v6, g1 + u1 * ru + v1 * rv, g2 + u2 * ru + v2 * rv
+  g3, g4, g5, g6 = g3 + u3 * ru + v3 * rv, g4 + fa * ru, g5 + fb * rv, g6 + u6 * ru + v6 * rv
+  -- corner 3: Y = A - B
+  y1, y2, y3 = ax - bx, ay - by, az - bz
+  z = y3 + qz
+  if not (z > 0) then return huge end
+  iz = 1 / z
+  pu, pv = (y1 + qx) * iz, (y2 + qy) * iz
+  ru, rv = fx * pu + cx - px[5], fy * pv + cy - px[6]
+  s = s + ru * ru + rv * rv
+  fa, fb = fx * iz, fy * iz
+  u1, u2, u3, u6 = -fa * pu * y2, fa * (y3 + pu * y1), -fa * y2, -fa * pu
+  v1, v2, v3, v6 = -fb * (pv * y2 + y3), fb * pv * y1, fb * y1, -fb * pv
+  h11, h12, h13 = h11 + u1 * u1 + v1 * v1, h12 + u1 * u2 + v1 * v2, h13 + u1 * u3 + v1 * v3
+  h14, h15, h16 = h14 + u1 * fa, h15 + v1 * fb, h16 + u1 * u6 + v1 * v6
+  h22, h23, h24 = h22 + u2 * u2 + v2 * v2, h23 + u2 * u3 + v2 * v3, h24 + u2 * fa
+  h25, h26, h33 = h25 + v2 * fb, h26 + u2 * u6 + v2 * v6, h33 + u3 * u3 + v3 * v3
+  h34, h35, h36 = h34 + u3 * fa, h35 + v3 * fb, h36 + u3 * u6 + v3 * v6
+  h44, h46, h55, h56 = h44 + fa * fa, h46 + fa * u6, h55 + fb * fb, h56 + fb * v6
+  h66, g1, g2 = h66 + u6 * u6 + v6 * v6, g1 + u1 * ru + v1 * rv, g2 + u2 * ru + v2 * rv
+  g3, g4, g5, g6 = g3 + u3 * ru + v3 * rv, g4 + fa * ru, g5 + fb * rv, g6 + u6 * ru + v6 * rv
+  -- corner 4: Y = -(A + B)
+  y1, y2, y3 = -ax - bx, -ay - by, -az - bz
+  z = y3 + qz
+  if not (z > 0) then return huge end
+  iz = 1 / z
+  pu, pv = (y1 + qx) * iz, (y2 + qy) * iz
+  ru, rv = fx * pu + cx - px[7], fy * pv + cy - px[8]
+  s = s + ru * ru + rv * rv
+  fa, fb = fx * iz, fy * iz
+  u1, u2, u3, u6 = -fa * pu * y2, fa * (y3 + pu * y1), -fa * y2, -fa * pu
+  v1, v2, v3, v6 = -fb * (pv * y2 + y3), fb * pv * y1, fb * y1, -fb * pv
+  h11, h12, h13 = h11 + u1 * u1 + v1 * v1, h12 + u1 * u2 + v1 * v2, h13 + u1 * u3 + v1 * v3
+  h14, h15, h16 = h14 + u1 * fa, h15 + v1 * fb, h16 + u1 * u6 + v1 * v6
+  h22, h23, h24 = h22 + u2 * u2 + v2 * v2, h23 + u2 * u3 + v2 * v3, h24 + u2 * fa
+  h25, h26, h33 = h25 + v2 * fb, h26 + u2 * u6 + v2 * v6, h33 + u3 * u3 + v3 * v3
+  h34, h35, h36 = h34 + u3 * fa, h35 + v3 * fb, h36 + u3 * u6 + v3 * v6
+  h44, h46, h55, h56 = h44 + fa * fa, h46 + fa * u6, h55 + fb * fb, h56 + fb * v6
+  h66, g1, g2 = h66 + u6 * u6 + v6 * v6, g1 + u1 * ru + v1 * rv, g2 + u2 * ru + v2 * rv
+  g3, g4, g5, g6 = g3 + u3 * ru + v3 * rv, g4 + fa * ru, g5 + fb * rv, g6 + u6 * ru + v6 * rv
+  N[1], N[2], N[3], N[4], N[5], N[6] = h11, h12, h13, h14, h15, h16
+  N[7], N[8], N[9], N[10], N[11] = h22, h23, h24, h25, h26
+  N[12], N[13], N[14], N[15], N[16], N[17] = h33, h34, h35, h36, h44, 0
+  N[18], N[19], N[20], N[21] = h46, h55, h56, h66
+  N[22], N[23], N[24], N[25], N[26], N[27] = g1, g2, g3, g4, g5, g6
+  return s
+end
+
+-- The normal equations and the cost of the pose Q into N: on LuaJIT always the loop; on PUC
+-- Lua the written-out corners for a pinhole, the loop through a lens.
+local linearise
+if compat.jit then
+  linearise = linearise_looped
+else
+  linearise = function(N, px, C, Q)
+    if C[6] == 0 then return linearise_unrolled(N, px, C, Q) end
+    return linearise_looped(N, px, C, Q)
+  end
+end
+
+M.linearise_looped, M.linearise_unrolled = linearise_looped, linearise_unrolled
+
 -- The damped Gauss-Newton step from the pose P with the normal equations N, the damping raised
 -- until the system solves: writes the trial pose into Q and returns the damping used and the
 -- predicted squared displacement of the corners; nil when no damping up to 1e8 solves.
@@ -206,7 +330,7 @@ local function step(N, lambda, P, Q)
   return lambda, disp
 end
 
-local N = {} -- the normal equations, filled by linearise
+local normal_a, normal_b = {}, {} -- normal equations, filled by linearise
 local K = {} -- the constants of the refinement under way
 local pose_p, pose_q = {}, {} -- its pose and trial pose
 
@@ -229,42 +353,47 @@ function M.refine(camera, px, half, r, tx, ty, tz, max_iterations)
   max_iterations = max_iterations or M.MAX_ITERATIONS
   local C = constants(K, camera, half)
   local floor, relative = 4 * M.STEP_TOLERANCE * M.STEP_TOLERANCE, M.STEP_RELATIVE
-  -- the pose P and the pose to linearise next Q (the start, then each trial), each as the tag's
-  -- x and y axes in the camera (columns 1 and 2 of R; column 3 is their cross product) and t
-  local P, Q = pose_p, pose_q
-  Q[1], Q[2], Q[3], Q[4], Q[5], Q[6], Q[7], Q[8], Q[9] = r[1], r[4], r[7], r[2], r[5], r[8], tx,
+  -- the pose P and the trial Q, each as the tag's x and y axes in the camera (columns 1 and 2
+  -- of R; column 3 is their cross product) and t; A holds the normal equations at P, B a trial's
+  local P, Q, A, B = pose_p, pose_q, normal_a, normal_b
+  P[1], P[2], P[3], P[4], P[5], P[6], P[7], P[8], P[9] = r[1], r[4], r[7], r[2], r[5], r[8], tx,
     ty, tz
-  for i = 1, 9 do P[i] = Q[i] end
-  local lambda, k, sum, retry = 1e-6, 0, huge, false
-  while k < max_iterations do
-    k = k + 1
-    -- linearise at Q: the normal equations and the cost
-    local s = linearise(N, px, C, Q)
-    if k == 1 and not (s < huge) then return tx, ty, tz, huge, k end
-    if s <= sum or retry then
-      -- the trial lowered the cost (or this is the start, or the pose again): it is the pose
+  local sum = linearise(A, px, C, P)
+  if not (sum < huge) then return tx, ty, tz, huge, 1 end
+  -- fresh: no trial was refused since A was computed, so the next trial is linearised at once
+  -- (its equations are the next step's if it is taken); after a refusal, trials are costed
+  -- only, and the one taken is linearised then
+  local k, lambda, fresh = 1, 1e-6, true
+  while true do
+    local disp
+    lambda, disp = step(A, lambda, P, Q)
+    if not lambda then break end
+    local last = disp < floor + relative * sum or k >= max_iterations
+    local s
+    if last or not fresh then
+      s = residuals(px, C, Q)
+    else
+      k = k + 1
+      s = linearise(B, px, C, Q)
+    end
+    if s <= sum then
       for i = 1, 9 do P[i] = Q[i] end
       sum = s
-      if k > 1 and not retry and lambda > 1e-12 then lambda = lambda * 0.1 end
-      retry = false
-      local disp
-      lambda, disp = step(N, lambda, P, Q)
-      if not lambda then break end
-      if disp < floor + relative * sum or k >= max_iterations then
-        -- converged (or out of linearisations): the cost of the last step decides
-        local c = residuals(px, C, Q)
-        if c <= sum then
-          for i = 1, 9 do P[i] = Q[i] end
-          sum = c
-        end
-        break
+      if last then break end
+      if fresh then
+        A, B = B, A
+      else
+        k = k + 1
+        linearise(A, px, C, P)
       end
+      fresh = true
+      if lambda > 1e-12 then lambda = lambda * 0.1 end
     else
-      -- the trial raised the cost: back to the pose, with more damping (re-linearised)
+      -- the trial raised the cost: more damping from the same pose and equations
+      if last then break end
       lambda = lambda * 10
       if lambda > 1e8 then break end
-      for i = 1, 9 do Q[i] = P[i] end
-      retry = true
+      fresh = false
     end
   end
   local ax, ay, az, bx, by, bz = P[1], P[2], P[3], P[4], P[5], P[6]

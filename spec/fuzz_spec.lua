@@ -1,0 +1,203 @@
+-- Hardening: tagpose.solve and the lens inverse on inputs built to break them. Every input gives
+-- either a finite pose whose reported error is its own reprojection error, or nil and a
+-- "module: reason" message; nothing raises, nothing is NaN or infinite, no count exceeds its
+-- documented bound. Deterministic: the seed of a failing case is in the message.
+
+local tagpose = require("tagpose")
+local camera_model = require("tagpose.camera")
+local refine = require("tagpose.refine")
+local solvequad = require("tagpose.solvequad")
+local geometry = require("support.geometry")
+
+local sqrt, huge = math.sqrt, math.huge
+local nan = 0 / 0
+
+local function finite(v)
+  return type(v) == "number" and v - v == 0
+end
+
+-- RMS reprojection error of a returned pose, recomputed here from geometry
+local function reprojection(pose, camera, s, corners)
+  local R = pose.rotation
+  local r = { R[1][1], R[1][2], R[1][3], R[2][1], R[2][2], R[2][3], R[3][1], R[3][2], R[3][3] }
+  local p = pose.position
+  local px = geometry.project(camera, r, { p.x, p.y, p.z }, s)
+  if not px then return huge end
+  local sum = 0
+  for i = 1, 4 do
+    local c = corners[i]
+    local u, v = c[1] or c.x, c[2] or c.y
+    sum = sum + (px[i][1] - u) ^ 2 + (px[i][2] - v) ^ 2
+  end
+  return sqrt(sum / 4)
+end
+
+-- the checks every answer must pass; returns nil or what is wrong
+local function check_pose(pose, camera, s, corners, options)
+  local p, q, R = pose.position, pose.quaternion, pose.rotation
+  local sum = p.x + p.y + p.z + pose.error + q.w + q.x + q.y + q.z
+  for i = 1, 3 do
+    sum = sum + R[i][1] + R[i][2] + R[i][3]
+  end
+  if not finite(sum) then return "non-finite field" end
+  local max_it = options and options.max_iterations or solvequad.MAX_ITERATIONS
+  if pose.iterations > max_it then return "solveQuad iterations above the bound" end
+  if (pose.refine_iterations or 0) > 2 * refine.MAX_ITERATIONS then
+    return "refinement iterations above the bound"
+  end
+  local e = reprojection(pose, camera, s, corners)
+  -- the error is the pose's own: to round-off relative to the pixel coordinates' size
+  local scale = 0
+  for i = 1, 4 do
+    local c = corners[i]
+    scale = math.max(scale, math.abs(c[1] or c.x), math.abs(c[2] or c.y))
+  end
+  if not (math.abs(e - pose.error) <= 1e-6 * (1 + pose.error) + 1e-9 * scale) then
+    return ("reported error %.17g, reprojection %.17g"):format(pose.error, e)
+  end
+  if pose.alternative then return check_pose(pose.alternative, camera, s, corners, options) end
+  return nil
+end
+
+local cameras = {
+  { fx = 883.98, fy = 883.98, cx = 319.5, cy = 239.5 },
+  { fx = 313.9, fy = 313.9, cx = 159.5, cy = 119.5 },
+  { fx = 700, fy = 700, cx = 639.5, cy = 359.5,
+    distortion = { k1 = -0.28, k2 = 0.07, p1 = 5e-4, p2 = -3e-4, k3 = 0 } },
+  { fx = 600, fy = 600, cx = 639.5, cy = 359.5, model = "fisheye",
+    distortion = { k1 = -0.013, k2 = 0.02, k3 = -0.008, k4 = 0.001 } },
+  { fx = 1e-6, fy = 1e-6, cx = 0, cy = 0 },
+  { fx = 1e9, fy = 2e9, cx = -5e5, cy = 1e7 },
+  { fx = 1, fy = 1, cx = 0, cy = 0 },
+}
+
+describe("fuzzing", function()
+  it("tagpose.solve survives 100 000 hostile inputs", function()
+    local seed = 20261122
+    local rng = geometry.rng(seed)
+    local u, n = rng.uniform, 0
+    local counts = { ok = 0, failed = 0 }
+    local valid = { { 280, 280 }, { 360, 280 }, { 360, 200 }, { 280, 200 } }
+    local function quad_from(kind, camera)
+      local c = {}
+      if kind == 1 then -- random quadrilateral anywhere
+        local span = 10 ^ u(-1, 4)
+        local ox, oy = u(-2, 2) * span, u(-2, 2) * span
+        for i = 1, 4 do c[i] = { ox + u(-1, 1) * span, oy + u(-1, 1) * span } end
+      elseif kind == 2 then -- a real tag, then one coordinate made NaN or ±inf
+        local r, t = geometry.random_pose(rng, camera, 0.05)
+        c = geometry.project(camera, r, t, 0.05) or valid
+        local bad = ({ nan, huge, -huge })[math.floor(u(1, 4))]
+        c[math.floor(u(1, 5))][math.floor(u(1, 3))] = bad
+      elseif kind == 3 then -- duplicate corners
+        for i = 1, 4 do c[i] = { valid[i][1], valid[i][2] } end
+        local a, b = math.floor(u(1, 5)), math.floor(u(1, 5))
+        c[a][1], c[a][2] = c[b][1], c[b][2]
+      elseif kind == 4 then -- collinear corners (three or four)
+        local x0, y0, dx, dy = u(-1e3, 1e3), u(-1e3, 1e3), u(-50, 50), u(-50, 50)
+        for i = 1, 4 do c[i] = { x0 + i * dx, y0 + i * dy } end
+        if u() < 0.5 then c[math.floor(u(1, 5))] = { x0 + u(-100, 100), y0 + u(-100, 100) } end
+      elseif kind == 5 then -- bow-tie or clockwise (mirrored) orderings of a real tag
+        local r, t = geometry.random_pose(rng, camera, 0.05)
+        local p = geometry.project(camera, r, t, 0.05) or valid
+        local order = ({ { 1, 2, 4, 3 }, { 1, 4, 3, 2 }, { 2, 1, 3, 4 }, { 1, 3, 2, 4 } })
+          [math.floor(u(1, 5))]
+        for i = 1, 4 do c[i] = p[order[i]] end
+      elseif kind == 6 then -- sub-pixel tags
+        local w = 10 ^ u(-6, 0)
+        local x0, y0 = u(0, 640), u(0, 480)
+        c = { { x0, y0 + w }, { x0 + w, y0 + w }, { x0 + w, y0 }, { x0, y0 } }
+      elseif kind == 7 then -- coordinates of 1e12
+        local big = 1e12 * (u() < 0.5 and 1 or -1)
+        for i = 1, 4 do c[i] = { big + valid[i][1] * 1e10, big + valid[i][2] * 1e10 } end
+      elseif kind == 8 then -- a real tag at a random pose, noisy (the ordinary case)
+        local r, t = geometry.random_pose(rng, camera, 0.05, { width = 10 ^ u(0.5, 3) })
+        c = geometry.project(camera, r, t, 0.05) or valid
+        local sigma = 10 ^ u(-3, 1)
+        for i = 1, 4 do
+          c[i] = { c[i][1] + sigma * rng.normal(), c[i][2] + sigma * rng.normal() }
+        end
+      else -- wildly distorted or edge-of-image tags, and {x =, y =} corners
+        for i = 1, 4 do c[i] = { x = u(-1e4, 1e4), y = u(-1e4, 1e4) } end
+      end
+      return c
+    end
+    for case = 1, 100000 do
+      local camera = cameras[math.floor(u(1, #cameras + 1))]
+      local kind = math.floor(u(1, 10))
+      local corners = quad_from(kind, camera)
+      local s = 10 ^ u(-9, 9)
+      local options
+      local pick = u()
+      if pick < 0.2 then
+        options = { method = "seed" }
+      elseif pick < 0.3 then
+        options = { tolerance = 10 ^ u(-20, 0), max_iterations = math.floor(u(1, 200)) }
+      elseif pick < 0.4 then
+        local w, x, y, z = rng.normal(), rng.normal(), rng.normal(), rng.normal()
+        options = { prior = { quaternion = { w = w, x = x, y = y, z = z } } }
+      elseif pick < 0.45 then
+        options = { into = {} }
+      end
+      local label = ("seed %d case %d (kind %d)"):format(seed, case, kind)
+      local ok, pose, err = pcall(tagpose.solve, corners, camera, s, options)
+      assert.is_true(ok, label .. ": raised " .. tostring(pose))
+      if pose then
+        counts.ok = counts.ok + 1
+        local problem = check_pose(pose, camera, s, corners, options)
+        assert.is_nil(problem, label .. ": " .. tostring(problem))
+        -- a pose makes a good prior for the same corners and options (checked on a sample)
+        local with_prior = { prior = pose }
+        for k, v in pairs(options or {}) do
+          if k ~= "into" and k ~= "prior" then with_prior[k] = v end
+        end
+        if case % 8 == 0 then
+          local again = tagpose.solve(corners, camera, s, with_prior)
+          assert.is_table(again, label .. ": the pose as a prior")
+        end
+      else
+        counts.failed = counts.failed + 1
+        assert.is_string(err, label)
+        assert.truthy(err:match("^%a+: "), label .. ": message " .. err)
+      end
+      n = n + 1
+    end
+    assert.equal(100000, n)
+    -- both routes were exercised
+    assert.is_true(counts.ok > 20000 and counts.failed > 20000,
+      ("%d poses, %d refusals"):format(counts.ok, counts.failed))
+  end)
+
+  it("the lens inverse answers exactly or refuses, over random models and points", function()
+    local seed = 4711
+    local rng = geometry.rng(seed)
+    local u = rng.uniform
+    for case = 1, 20000 do
+      local camera
+      if u() < 0.7 then
+        camera = { fx = 700, fy = 700, cx = 0, cy = 0, distortion = { k1 = u(-1, 1),
+          k2 = u(-0.5, 0.5), p1 = u(-0.02, 0.02), p2 = u(-0.02, 0.02), k3 = u(-0.5, 0.5) } }
+        if u() < 0.3 then
+          camera.distortion.k4, camera.distortion.k5 = u(0, 1), u(-0.2, 0.2)
+        end
+      else
+        camera = { fx = 700, fy = 700, cx = 0, cy = 0, model = "fisheye", distortion = {
+          k1 = u(-0.2, 0.2), k2 = u(-0.1, 0.1), k3 = u(-0.05, 0.05), k4 = u(-0.01, 0.01) } }
+      end
+      local xd, yd = u(-3, 3), u(-3, 3)
+      if u() < 0.02 then xd = ({ nan, huge, 1e300 })[math.floor(u(1, 4))] end
+      local label = ("seed %d case %d"):format(seed, case)
+      local ok, x, y = pcall(camera_model.undistort, camera, xd, yd)
+      assert.is_true(ok, label .. ": raised " .. tostring(x))
+      if x then
+        assert.is_true(finite(x) and finite(y), label)
+        local bx, by = geometry.distort(camera, x, y)
+        local d = sqrt((bx - xd) ^ 2 + (by - yd) ^ 2)
+        assert.is_true(d <= 1e-12 * (1 + math.abs(xd) + math.abs(yd)),
+          ("%s: residual %.3g"):format(label, d))
+      else
+        assert.truthy(tostring(y):match("^camera: "), label .. ": " .. tostring(y))
+      end
+    end
+  end)
+end)
