@@ -1,6 +1,6 @@
 -- Block poses from a corner log, and (given the truth) the block-level figures of PEERS.md.
 --
---   lua5.4 examples/blocks.lua DATASET_DIR [--up | --floor] [--track] [--out FILE]
+--   lua5.4 examples/blocks.lua DATASET_DIR [--auto | --up | --floor] [--track] [--out FILE]
 --     [--passes N] [--peers PEERS.md]
 --
 -- DATASET_DIR holds camera.lua (with tag_size and block_size), corners.csv (a corner log:
@@ -12,9 +12,10 @@
 -- With truth it scores tagpose.block.solve four times - with nothing but the corners, with
 -- up = "auto" (up from the frame's blocks seen with two or more faces), with an up vector, with
 -- an up vector and the floor - and prints the table of PEERS.md beside the baseline's rows read
--- from PEERS.md. --up (--floor) scores only the run with up (and the
--- floor), --track passes each frame's blocks to the next (frames numbered consecutively),
--- --out writes the block poses of the (last) run, --passes sets the timing passes (median).
+-- from PEERS.md. --auto, --up and --floor score only the run with up = "auto", with up, with
+-- up and the floor (without truth --auto runs with up = "auto"); --track passes each frame's
+-- blocks to the next (for sequences, frames numbered consecutively); --out writes the block
+-- poses of the (last) run; --passes sets the timing passes (median).
 --
 -- The up vector comes from the truth, as a robot's IMU would give it: the camera looks forward
 -- and down by less than 45 degrees, and every block rests on a face, so in each frame the face
@@ -42,7 +43,7 @@ local sqrt, floor, deg, huge = math.sqrt, math.floor, math.deg, math.huge
 
 local function usage(msg)
   io.stderr:write((msg and msg .. "\n" or "") .. "usage: lua examples/blocks.lua DATASET_DIR "
-    .. "[--up | --floor] [--track] [--out FILE] [--passes N] [--peers PEERS.md]\n")
+    .. "[--auto | --up | --floor] [--track] [--out FILE] [--passes N] [--peers PEERS.md]\n")
   os.exit(2)
 end
 
@@ -53,6 +54,8 @@ do
     local a = arg[i]
     if a == "--up" then
       opts.up = true
+    elseif a == "--auto" then
+      opts.auto = true
     elseif a == "--floor" then
       opts.up, opts.floor = true, true
     elseif a == "--track" then
@@ -191,7 +194,7 @@ local function write_poses(path, results)
 end
 
 if not truth then
-  local results, us = run(opts.up)
+  local results, us = run(false, false, opts.auto)
   write_poses(opts.out or "-", results)
   io.stderr:write(("%d frames, %.0f µs per frame (%s)\n"):format(#frames, us, _VERSION))
   return
@@ -410,6 +413,8 @@ if opts.floor then
   runs = { { true, true } }
 elseif opts.up then
   runs = { { true, false } }
+elseif opts.auto then
+  runs = { { false, false, true } }
 end
 for _, mode in ipairs(runs) do
   local with_up, with_floor, auto = mode[1], mode[2], mode[3]
