@@ -1,6 +1,6 @@
 -- The shape of a robot controller step with tagpose: take the camera system's tag list as the
 -- robot's Lua API hands it out, solve every tag, keep each tag's tracking state from step to
--- step, and return the poses (and the blocks, once tagpose.block exists).
+-- step, and return the poses and the blocks (tagpose.block, tracked from step to step).
 --
 --   lua5.4 examples/controller.lua [LOG.csv] [--camera CAMERA.lua] [--every N]
 --
@@ -95,7 +95,7 @@ end
 --- One control step: solve every tag of the camera system's list.
 -- Returns an array in the list's order of {id =, pose = <tagpose.solve result or nil>,
 -- reason = <why not, or nil>, tracked = <true when the tag's previous pose was the prior>},
--- and the blocks when tagpose.block exists (else nil).
+-- and the blocks (tagpose.block; nil where the library has none).
 function M:step(tags)
   tags = tags or {}
   self.count = self.count + 1

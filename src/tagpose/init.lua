@@ -320,4 +320,7 @@ function M.solve(corners, camera, tag_size, options)
   return result
 end
 
+--- Blocks: cubes carrying a tag on each face (`tagpose.block`; it uses `solve` above).
+M.block = require("tagpose.block")
+
 return M
