@@ -27,6 +27,37 @@ function M.is_positive(v)
   return is_finite(v) and v > 0
 end
 
+--- Read four corners (`{u, v}` or `{x = u, y = v}` each) into the flat array `out`
+-- (`{u1, v1, ..., u4, v4}`).
+-- @tparam any corners
+-- @tparam {number,...} out array to fill
+-- @treturn true|int `true`, or the index of the first corner that is not finite
+-- @return false, string when `corners` is not four corners (the misuse, for an error message)
+function M.read_corners(corners, out)
+  if type(corners) ~= "table" then
+    return false, "table of four corners expected, got " .. type(corners)
+  end
+  if #corners ~= 4 then return false, "four corners expected, got " .. #corners end
+  local bad = true
+  for i = 1, 4 do
+    local c = corners[i]
+    if type(c) ~= "table" then
+      return false, "corner " .. i .. ": table expected, got " .. type(c)
+    end
+    local u, v = c[1], c[2]
+    if u == nil then u = c.x end
+    if v == nil then v = c.y end
+    if type(u) ~= "number" or type(v) ~= "number" then
+      return false, "corner " .. i .. ": numbers {u, v} or {x =, y =} expected, got "
+        .. M.describe(u) .. " and " .. M.describe(v)
+    end
+    -- finite exactly when u - u is 0 (NaN and ±inf give NaN)
+    if bad == true and not (u - u == 0 and v - v == 0) then bad = i end
+    out[2 * i - 1], out[2 * i] = u, v
+  end
+  return bad
+end
+
 --- Raise `bad argument #n to 'fname' (message)`.
 -- @tparam int n argument position
 -- @tparam string fname the public function's name

@@ -166,29 +166,6 @@ end
 -- ------------------------------------------------------------------------------------------
 -- Arguments
 
--- The pixel corners of a detection into the flat array out; or false and the misuse.
-local function read_corners(corners, out)
-  if type(corners) ~= "table" then
-    return false, "corners: table of four corners expected, got " .. type(corners)
-  end
-  if #corners ~= 4 then return false, "corners: four corners expected, got " .. #corners end
-  for i = 1, 4 do
-    local c = corners[i]
-    if type(c) ~= "table" then
-      return false, "corner " .. i .. ": table expected, got " .. type(c)
-    end
-    local u, v = c[1], c[2]
-    if u == nil then u = c.x end
-    if v == nil then v = c.y end
-    if type(u) ~= "number" or type(v) ~= "number" then
-      return false, "corner " .. i .. ": numbers {u, v} or {x =, y =} expected, got "
-        .. describe(u) .. " and " .. describe(v)
-    end
-    out[2 * i - 1], out[2 * i] = u, v
-  end
-  return true
-end
-
 -- A direction {x, y, z} or {1, 2, 3}, made unit; or nil and the misuse.
 local function read_direction(v, name)
   if type(v) ~= "table" then
@@ -891,8 +868,8 @@ function M.solve(detections, camera, tag_size, block_size, options)
     if type(det) ~= "table" then
       malformed = "table {id =, corners =} expected, got " .. type(det)
     else
-      local ok, why = read_corners(det.corners, work)
-      if not ok then malformed = why end
+      local ok, why = args.read_corners(det.corners, work)
+      if not ok then malformed = why:match("^corner ") and why or "corners: " .. why end
     end
     local face_r = not malformed and faces and faces[det.id]
     if malformed then
@@ -910,7 +887,7 @@ function M.solve(detections, camera, tag_size, block_size, options)
         local d = { index = i, px = {}, cands = { candidate(pose, face_r, half_block) },
           face_r = face_r }
         local q = d.px
-        read_corners(det.corners, q)
+        args.read_corners(det.corners, q)
         if pose.alternative then
           d.cands[2] = candidate(pose.alternative, face_r, half_block)
         end
@@ -1108,8 +1085,7 @@ end
 -- and call much: on LuaJIT their traces outgrow the machine-code area (512 KB by default), which
 -- is then flushed and refilled every hundred frames or so. Left to the interpreter (the kernels
 -- it calls still compile their own loops) it runs about three times faster there. Whether the VM
--- can do that is compat's to know: `compat.interpret` is its proposed helper; without it this
--- line does nothing.
-if compat.interpret then compat.interpret(M.solve) end
+-- can do that is compat's to know (`compat.interpret`; a no-op on PUC Lua).
+compat.interpret(M.solve)
 
 return M

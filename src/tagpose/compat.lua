@@ -40,6 +40,16 @@ local huge = math.huge
 -- results never do).
 M.jit = rawget(_G, "jit") ~= nil
 
+--- Leave a function to LuaJIT's interpreter (a no-op elsewhere): for driver code whose loops
+-- branch and call so much that their traces would fill LuaJIT's machine-code area. The
+-- functions it calls still compile their own loops.
+-- @tparam function f
+-- @treturn function f
+function M.interpret(f)
+  if M.jit then rawget(_G, "jit").off(f) end
+  return f
+end
+
 --- True when `v` is a number that is neither NaN nor ±infinity.
 -- @tparam any v
 -- @treturn boolean

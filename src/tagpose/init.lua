@@ -42,33 +42,6 @@ local state = {} -- tracking state of this frame
 local prior_state = {} -- tracking state made from a prior without one
 local spare = setmetatable({}, { __mode = "k" }) -- into -> an alternative table to reuse
 
--- Read the corners into px. Returns true (or the index of the first non-finite corner), or
--- false and a description of the misuse.
-local function read_corners(corners)
-  if type(corners) ~= "table" then
-    return false, "table of four corners expected, got " .. type(corners)
-  end
-  if #corners ~= 4 then return false, "four corners expected, got " .. #corners end
-  local bad = true
-  for i = 1, 4 do
-    local c = corners[i]
-    if type(c) ~= "table" then
-      return false, "corner " .. i .. ": table expected, got " .. type(c)
-    end
-    local u, v = c[1], c[2]
-    if u == nil then u = c.x end
-    if v == nil then v = c.y end
-    if type(u) ~= "number" or type(v) ~= "number" then
-      return false, "corner " .. i .. ": numbers {u, v} or {x =, y =} expected, got "
-        .. describe(u) .. " and " .. describe(v)
-    end
-    -- finite exactly when u - u is 0 (NaN and ±inf give NaN)
-    if bad == true and not (u - u == 0 and v - v == 0) then bad = i end
-    px[2 * i - 1], px[2 * i] = u, v
-  end
-  return bad
-end
-
 -- The quaternion {w, x, y, z} of a pose table (quaternion or rotation field), or nil.
 local function pose_quaternion(p, out)
   if type(p) ~= "table" then return nil end
@@ -185,7 +158,7 @@ end
 -- local pose = tagpose.solve({{280, 280}, {360, 280}, {360, 200}, {280, 200}},
 --   {fx = 883.98, fy = 883.98, cx = 319.5, cy = 239.5}, 0.024)
 function M.solve(corners, camera, tag_size, options)
-  local bad, problem = read_corners(corners)
+  local bad, problem = args.read_corners(corners, px)
   if not bad then arg_error(1, problem) end
   problem = camera_model.check(camera)
   if problem then arg_error(2, problem) end

@@ -22,22 +22,23 @@ local M = {}
 -- @treturn number y
 -- @treturn number z
 function M.to_quaternion(r)
-  local r11, r12, r13, r21, r22, r23, r31, r32, r33 =
-    r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8], r[9]
+  -- each branch reads only what it needs (LuaJIT cannot compile the exits of a version that
+  -- loads all nine entries first: "register coalescing too complex")
+  local r11, r22, r33 = r[1], r[5], r[9]
   local tr = r11 + r22 + r33
   local w, x, y, z
   if tr >= r11 and tr >= r22 and tr >= r33 then
     local s = 2 * sqrt(1 + tr)
-    w, x, y, z = 0.25 * s, (r32 - r23) / s, (r13 - r31) / s, (r21 - r12) / s
+    w, x, y, z = 0.25 * s, (r[8] - r[6]) / s, (r[3] - r[7]) / s, (r[4] - r[2]) / s
   elseif r11 >= r22 and r11 >= r33 then
     local s = 2 * sqrt(1 + r11 - r22 - r33)
-    w, x, y, z = (r32 - r23) / s, 0.25 * s, (r12 + r21) / s, (r13 + r31) / s
+    w, x, y, z = (r[8] - r[6]) / s, 0.25 * s, (r[2] + r[4]) / s, (r[3] + r[7]) / s
   elseif r22 >= r33 then
     local s = 2 * sqrt(1 - r11 + r22 - r33)
-    w, x, y, z = (r13 - r31) / s, (r12 + r21) / s, 0.25 * s, (r23 + r32) / s
+    w, x, y, z = (r[3] - r[7]) / s, (r[2] + r[4]) / s, 0.25 * s, (r[6] + r[8]) / s
   else
     local s = 2 * sqrt(1 - r11 - r22 + r33)
-    w, x, y, z = (r21 - r12) / s, (r13 + r31) / s, (r23 + r32) / s, 0.25 * s
+    w, x, y, z = (r[4] - r[2]) / s, (r[3] + r[7]) / s, (r[6] + r[8]) / s, 0.25 * s
   end
   local n = sqrt(w * w + x * x + y * y + z * z)
   if w < 0 then n = -n end
