@@ -135,6 +135,23 @@ describe("tagpose.rotation", function()
     end)
   end)
 
+  describe("multiply_transpose() and transpose_multiply()", function()
+    it("are a·bᵀ and aᵀ·b, also in place", function()
+      local a = geometry.axis_angle(0.2, 0.9, -0.4, 1.1)
+      local b = geometry.axis_angle(-0.7, 0.1, 0.5, 2.3)
+      local abt = rotation.multiply(a, rotation.transpose(b))
+      local atb = rotation.multiply(rotation.transpose(a), b)
+      local got = rotation.multiply_transpose(a, b)
+      for i = 1, 9 do assert.near(abt[i], got[i], 1e-15) end
+      got = rotation.transpose_multiply(a, b)
+      for i = 1, 9 do assert.near(atb[i], got[i], 1e-15) end
+      local c = {}
+      for i = 1, 9 do c[i] = a[i] end
+      rotation.transpose_multiply(c, b, c)
+      for i = 1, 9 do assert.near(atb[i], c[i], 1e-15) end
+    end)
+  end)
+
   describe("orthonormalise()", function()
     it("turns a perturbed rotation into the nearby proper rotation", function()
       local r = geometry.axis_angle(0.5, -0.5, 1, 1.3)

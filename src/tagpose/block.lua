@@ -109,53 +109,10 @@ local function arg_error(n, message)
   args.raise(n, "solve", message, 3)
 end
 
--- (3×3 algebra is unrolled: LuaJIT makes a trace of every hot loop, and a frame's many tiny
--- loops would fill its trace cache)
-
--- a * b into out (flat 3×3; out may not be a or b)
-local function mul(a, b, out)
-  local b1, b2, b3, b4, b5, b6, b7, b8, b9 = b[1], b[2], b[3], b[4], b[5], b[6], b[7], b[8], b[9]
-  local a1, a2, a3 = a[1], a[2], a[3]
-  out[1], out[2], out[3] = a1 * b1 + a2 * b4 + a3 * b7, a1 * b2 + a2 * b5 + a3 * b8,
-    a1 * b3 + a2 * b6 + a3 * b9
-  a1, a2, a3 = a[4], a[5], a[6]
-  out[4], out[5], out[6] = a1 * b1 + a2 * b4 + a3 * b7, a1 * b2 + a2 * b5 + a3 * b8,
-    a1 * b3 + a2 * b6 + a3 * b9
-  a1, a2, a3 = a[7], a[8], a[9]
-  out[7], out[8], out[9] = a1 * b1 + a2 * b4 + a3 * b7, a1 * b2 + a2 * b5 + a3 * b8,
-    a1 * b3 + a2 * b6 + a3 * b9
-  return out
-end
-
--- a * bᵀ into out
-local function mul_t(a, b, out)
-  local b1, b2, b3, b4, b5, b6, b7, b8, b9 = b[1], b[2], b[3], b[4], b[5], b[6], b[7], b[8], b[9]
-  local a1, a2, a3 = a[1], a[2], a[3]
-  out[1], out[2], out[3] = a1 * b1 + a2 * b2 + a3 * b3, a1 * b4 + a2 * b5 + a3 * b6,
-    a1 * b7 + a2 * b8 + a3 * b9
-  a1, a2, a3 = a[4], a[5], a[6]
-  out[4], out[5], out[6] = a1 * b1 + a2 * b2 + a3 * b3, a1 * b4 + a2 * b5 + a3 * b6,
-    a1 * b7 + a2 * b8 + a3 * b9
-  a1, a2, a3 = a[7], a[8], a[9]
-  out[7], out[8], out[9] = a1 * b1 + a2 * b2 + a3 * b3, a1 * b4 + a2 * b5 + a3 * b6,
-    a1 * b7 + a2 * b8 + a3 * b9
-  return out
-end
-
--- aᵀ * b into out
-local function t_mul(a, b, out)
-  local b1, b2, b3, b4, b5, b6, b7, b8, b9 = b[1], b[2], b[3], b[4], b[5], b[6], b[7], b[8], b[9]
-  local a1, a2, a3 = a[1], a[4], a[7]
-  out[1], out[2], out[3] = a1 * b1 + a2 * b4 + a3 * b7, a1 * b2 + a2 * b5 + a3 * b8,
-    a1 * b3 + a2 * b6 + a3 * b9
-  a1, a2, a3 = a[2], a[5], a[8]
-  out[4], out[5], out[6] = a1 * b1 + a2 * b4 + a3 * b7, a1 * b2 + a2 * b5 + a3 * b8,
-    a1 * b3 + a2 * b6 + a3 * b9
-  a1, a2, a3 = a[3], a[6], a[9]
-  out[7], out[8], out[9] = a1 * b1 + a2 * b4 + a3 * b7, a1 * b2 + a2 * b5 + a3 * b8,
-    a1 * b3 + a2 * b6 + a3 * b9
-  return out
-end
+-- (3×3 algebra is unrolled, in tagpose.rotation: LuaJIT makes a trace of every hot loop, and a
+-- frame's many tiny loops would fill its trace cache)
+local mul, mul_t, t_mul = rotation.multiply, rotation.multiply_transpose,
+  rotation.transpose_multiply
 
 local function copy9(src, dst)
   dst[1], dst[2], dst[3], dst[4], dst[5], dst[6], dst[7], dst[8], dst[9] = src[1], src[2],

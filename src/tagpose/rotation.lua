@@ -149,6 +149,42 @@ function M.multiply(a, b, out)
   return out
 end
 
+--- Product `a * bᵀ` of two 3×3 matrices (for a rotation b: a times b's inverse).
+-- @tparam {number,...} a flat 3×3
+-- @tparam {number,...} b flat 3×3
+-- @tparam[opt] {number,...} out array to fill (may be `a` or `b`)
+-- @treturn {number,...} out
+function M.multiply_transpose(a, b, out)
+  out = out or {}
+  local a1, a2, a3, a4, a5, a6, a7, a8, a9 = a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9]
+  local b1, b2, b3, b4, b5, b6, b7, b8, b9 = b[1], b[2], b[3], b[4], b[5], b[6], b[7], b[8], b[9]
+  out[1], out[2], out[3] = a1 * b1 + a2 * b2 + a3 * b3, a1 * b4 + a2 * b5 + a3 * b6,
+    a1 * b7 + a2 * b8 + a3 * b9
+  out[4], out[5], out[6] = a4 * b1 + a5 * b2 + a6 * b3, a4 * b4 + a5 * b5 + a6 * b6,
+    a4 * b7 + a5 * b8 + a6 * b9
+  out[7], out[8], out[9] = a7 * b1 + a8 * b2 + a9 * b3, a7 * b4 + a8 * b5 + a9 * b6,
+    a7 * b7 + a8 * b8 + a9 * b9
+  return out
+end
+
+--- Product `aᵀ * b` of two 3×3 matrices (for a rotation a: a's inverse times b).
+-- @tparam {number,...} a flat 3×3
+-- @tparam {number,...} b flat 3×3
+-- @tparam[opt] {number,...} out array to fill (may be `a` or `b`)
+-- @treturn {number,...} out
+function M.transpose_multiply(a, b, out)
+  out = out or {}
+  local a1, a2, a3, a4, a5, a6, a7, a8, a9 = a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9]
+  local b1, b2, b3, b4, b5, b6, b7, b8, b9 = b[1], b[2], b[3], b[4], b[5], b[6], b[7], b[8], b[9]
+  out[1], out[2], out[3] = a1 * b1 + a4 * b4 + a7 * b7, a1 * b2 + a4 * b5 + a7 * b8,
+    a1 * b3 + a4 * b6 + a7 * b9
+  out[4], out[5], out[6] = a2 * b1 + a5 * b4 + a8 * b7, a2 * b2 + a5 * b5 + a8 * b8,
+    a2 * b3 + a5 * b6 + a8 * b9
+  out[7], out[8], out[9] = a3 * b1 + a6 * b4 + a9 * b7, a3 * b2 + a6 * b5 + a9 * b8,
+    a3 * b3 + a6 * b6 + a9 * b9
+  return out
+end
+
 --- Transpose (= inverse) of a rotation.
 -- @tparam {number,...} r flat 3×3
 -- @tparam[opt] {number,...} out array to fill (may be `r`)
