@@ -37,6 +37,7 @@ local px = {} -- pixel corners, flat
 local m = {} -- normalised, undistorted corners, flat
 local q = {} -- the two quadratics' coefficients
 local r1, r2 = {}, {} -- rotations of the two candidates
+local depth = {} -- the proximate solution's corner depths
 local qa, qb = {}, {} -- their quaternions {w, x, y, z}
 local state = {} -- tracking state of this frame
 local prior_state = {} -- tracking state made from a prior without one
@@ -136,39 +137,9 @@ local function finite_pose(r, tx, ty, tz, err)
   return s == s and s < huge and s > -huge
 end
 
---- Solve the pose of one tag.
--- @tparam {{number,number},...} corners the four corners in detection order, each `{u, v}` or
---   `{x = u, y = v}`, in pixels
--- @tparam table camera `{fx =, fy =, cx =, cy =}` in pixels, optionally `distortion` and
---   `model` (see `tagpose.camera`)
--- @tparam number tag_size side of the tag's black square (> 0); lengths come out in its unit
--- @tparam[opt] table options
---
---   - `method`: `"refined"` (default) or `"seed"` (the report's method exactly);
---   - `prior`: the pose this tag had in the previous frame, for tracking (`tagpose.track`);
---   - `into`: a pose table from an earlier call to fill instead of allocating a new one;
---   - `tolerance`: solveQuad's threshold (default 1e-10 for `"seed"`, `REFINED_TOLERANCE`
---     for `"refined"`), `max_iterations`: its bound (default 100).
--- @treturn table pose `{position = {x, y, z}, rotation = {{...}, {...}, {...}},
---   quaternion = {w, x, y, z}, error = px, iterations = n, refine_iterations = n,
---   alternative = pose or nil, track = state}`
--- @return nil, string when the corners cannot be a tag's (the message says why)
--- @raise `bad argument #n to 'solve' (...)` when an argument has the wrong type or range
--- @usage
--- local pose = tagpose.solve({{280, 280}, {360, 280}, {360, 200}, {280, 200}},
---   {fx = 883.98, fy = 883.98, cx = 319.5, cy = 239.5}, 0.024)
-function M.solve(corners, camera, tag_size, options)
-  local bad, problem = args.read_corners(corners, px)
-  if not bad then arg_error(1, problem) end
-  problem = camera_model.check(camera)
-  if problem then arg_error(2, problem) end
-  if not is_positive(tag_size) then
-    arg_error(3, "positive number expected for tag_size, got " .. describe(tag_size))
-  end
-  local method, tol, max_it, prior, into = read_options(options)
-  if not method then arg_error(4, tol) end
-  if bad ~= true then return nil, "tagpose: corner " .. bad .. " is not finite" end
-
+-- Normalise and undistort the corners (px into m) and check their shape: true, or nil and why.
+-- The proximate depths go into `depth`.
+local function prepare(camera)
   if camera.distortion == nil then
     local fx, fy, cx, cy = camera.fx, camera.fy, camera.cx, camera.cy
     m[1], m[2], m[3], m[4] = (px[1] - cx) / fx, (px[2] - cy) / fy, (px[3] - cx) / fx,
@@ -184,41 +155,35 @@ function M.solve(corners, camera, tag_size, options)
   end
   local l1, l2, l3, l4 = square.shape(m)
   if not l1 then return nil, l2 end
-  local half = 0.5 * tag_size
+  depth[1], depth[2], depth[3], depth[4] = l1, l2, l3, l4
+  return true
+end
 
-  -- the report's method
-  local X0, Y0 = square.proximate(l1, l2, l3, l4)
+-- The report's method on the prepared corners: the pose into r1 and tx, ty, tz, iterations; or
+-- nil, why, iterations.
+local function seed(half, tol, max_it)
+  local X0, Y0 = square.proximate(depth[1], depth[2], depth[3], depth[4])
   square.quadratics(m, q)
   local X, Y, iterations = solvequad.solve(q, X0, Y0, tol, max_it)
-  local tx, ty, tz
-  problem = nil
-  if X then
-    tx, ty, tz = square.pose(m, X, Y, half, r1)
-    if not tx then problem = ty end
-  else
-    problem = Y
-  end
-  if method == "seed" then
-    if problem then return nil, problem end
-    local err = pose.reprojection_error(camera, r1, tx, ty, tz, half, px)
-    if not finite_pose(r1, tx, ty, tz, err) then
-      return nil, "tagpose: no finite pose for these corners"
-    end
-    local result = pose.result(r1, tx, ty, tz, err, iterations, nil, into)
-    if into then into.alternative, into.track = nil, nil end
-    return result
-  end
+  if not X then return nil, Y, iterations end
+  local tx, ty, tz = square.pose(m, X, Y, half, r1)
+  if not tx then return nil, ty, iterations end
+  return tx, ty, tz, iterations
+end
 
-  -- refined: from the report's pose (or the proximate one where it has none), all four corners
-  if problem then
-    tx, ty, tz = square.proximate_pose(m, l1, l2, l3, l4, half, r1)
-    if not tx then return nil, ty end
-  end
+-- The proximate pose into r1, for a start where the report's method gives none.
+local function proximate(half)
+  return square.proximate_pose(m, depth[1], depth[2], depth[3], depth[4], half, r1)
+end
+
+-- The refined method from a start pose in r1: both local minima over all four corners, chosen
+-- between by error or by the tracker, shaped into the result.
+local function refined(camera, half, tx, ty, tz, iterations, prior, into)
   local c1, k1, c2, k2
   tx, ty, tz, c1, k1 = refine.refine(camera, px, half, r1, tx, ty, tz)
-  if not (c1 < huge) and not problem then
-    -- the report's pose is no start (a corner behind the camera at round-off): the proximate one
-    local sx, sy, sz = square.proximate_pose(m, l1, l2, l3, l4, half, r1)
+  if not (c1 < huge) then
+    -- the start is no start (a corner behind the camera at round-off): the proximate pose
+    local sx, sy, sz = proximate(half)
     if sx then tx, ty, tz, c1, k1 = refine.refine(camera, px, half, r1, sx, sy, sz) end
   end
   -- and the other local minimum of the planar ambiguity
@@ -291,6 +256,61 @@ function M.solve(corners, camera, tag_size, options)
     for i = 1, 10 do st[i] = out_state[i] end
   end
   return result
+end
+
+--- Solve the pose of one tag.
+-- @tparam {{number,number},...} corners the four corners in detection order, each `{u, v}` or
+--   `{x = u, y = v}`, in pixels
+-- @tparam table camera `{fx =, fy =, cx =, cy =}` in pixels, optionally `distortion` and
+--   `model` (see `tagpose.camera`)
+-- @tparam number tag_size side of the tag's black square (> 0); lengths come out in its unit
+-- @tparam[opt] table options
+--
+--   - `method`: `"refined"` (default) or `"seed"` (the report's method exactly);
+--   - `prior`: the pose this tag had in the previous frame, for tracking (`tagpose.track`);
+--   - `into`: a pose table from an earlier call to fill instead of allocating a new one;
+--   - `tolerance`: solveQuad's threshold (default 1e-10 for `"seed"`, `REFINED_TOLERANCE`
+--     for `"refined"`), `max_iterations`: its bound (default 100).
+-- @treturn table pose `{position = {x, y, z}, rotation = {{...}, {...}, {...}},
+--   quaternion = {w, x, y, z}, error = px, iterations = n, refine_iterations = n,
+--   alternative = pose or nil, track = state}`
+-- @return nil, string when the corners cannot be a tag's (the message says why)
+-- @raise `bad argument #n to 'solve' (...)` when an argument has the wrong type or range
+-- @usage
+-- local pose = tagpose.solve({{280, 280}, {360, 280}, {360, 200}, {280, 200}},
+--   {fx = 883.98, fy = 883.98, cx = 319.5, cy = 239.5}, 0.024)
+function M.solve(corners, camera, tag_size, options)
+  local bad, problem = args.read_corners(corners, px)
+  if not bad then arg_error(1, problem) end
+  problem = camera_model.check(camera)
+  if problem then arg_error(2, problem) end
+  if not is_positive(tag_size) then
+    arg_error(3, "positive number expected for tag_size, got " .. describe(tag_size))
+  end
+  local method, tol, max_it, prior, into = read_options(options)
+  if not method then arg_error(4, tol) end
+  if bad ~= true then return nil, "tagpose: corner " .. bad .. " is not finite" end
+  local ok, why = prepare(camera)
+  if not ok then return nil, why end
+  local half = 0.5 * tag_size
+  local tx, ty, tz, iterations = seed(half, tol, max_it)
+  if method == "seed" then
+    if not tx then return nil, ty end
+    local err = pose.reprojection_error(camera, r1, tx, ty, tz, half, px)
+    if not finite_pose(r1, tx, ty, tz, err) then
+      return nil, "tagpose: no finite pose for these corners"
+    end
+    local result = pose.result(r1, tx, ty, tz, err, iterations, nil, into)
+    if into then into.alternative, into.track = nil, nil end
+    return result
+  end
+  if not tx then
+    -- the refinement starts from the proximate pose where the report's method has none
+    iterations = tz
+    tx, ty, tz = proximate(half)
+    if not tx then return nil, ty end
+  end
+  return refined(camera, half, tx, ty, tz, iterations, prior, into)
 end
 
 --- Blocks: cubes carrying a tag on each face (`tagpose.block`; it uses `solve` above).

@@ -241,6 +241,29 @@ end
 
 local found = {}
 
+-- The report's update from (X, Y) for at most `budget` steps: X, Y, the steps taken, and
+-- whether |G1| and |G2| fell to `tol`. (A function of its own so that the loop's exits carry
+-- few values: LuaJIT cannot compile them with many.)
+local function report(q, X, Y, tol, budget)
+  local A1, B1, C1, D1, E1, F1 = q[1], q[2], q[3], q[4], q[5], q[6]
+  local A2, B2, C2, D2, E2, F2 = q[7], q[8], q[9], q[10], q[11], q[12]
+  local k = 0
+  while true do
+    local g1 = A1 * X * X + B1 * Y * Y + C1 * X * Y + D1 * X + E1 * Y + F1
+    local g2 = A2 * X * X + B2 * Y * Y + C2 * X * Y + D2 * X + E2 * Y + F2
+    if g1 <= tol and g1 >= -tol and g2 <= tol and g2 >= -tol then return X, Y, k, true end
+    if k >= budget then return X, Y, k, false end
+    local g1x, g1y = 2 * A1 * X + C1 * Y + D1, 2 * B1 * Y + C1 * X + E1
+    local g2x, g2y = 2 * A2 * X + C2 * Y + D2, 2 * B2 * Y + C2 * X + E2
+    local n1, n2 = g1x * g1x + g1y * g1y, g2x * g2x + g2y * g2y
+    -- a vanishing or non-finite gradient: the update is undefined
+    if not (n1 > 0 and n2 > 0 and n1 + n2 < huge) then return X, Y, k, false end
+    local s1, s2 = g1 / n1, g2 / n2
+    X, Y = X - s1 * g1x - s2 * g2x, Y - s1 * g1y - s2 * g2y
+    k = k + 1
+  end
+end
+
 --- Find a root of the two quadratics, starting from `(X, Y)`.
 -- @tparam {number,...} q the twelve coefficients
 -- @tparam number X start
@@ -255,26 +278,12 @@ local found = {}
 function M.solve(q, X, Y, tol, max_iterations)
   tol = tol or M.TOLERANCE
   max_iterations = max_iterations or M.MAX_ITERATIONS
-  local A1, B1, C1, D1, E1, F1 = q[1], q[2], q[3], q[4], q[5], q[6]
-  local A2, B2, C2, D2, E2, F2 = q[7], q[8], q[9], q[10], q[11], q[12]
   local X0, Y0 = X, Y
   local budget = M.REPORT_STEPS
   if budget > max_iterations then budget = max_iterations end
-  local k = 0
-  while true do
-    local g1 = A1 * X * X + B1 * Y * Y + C1 * X * Y + D1 * X + E1 * Y + F1
-    local g2 = A2 * X * X + B2 * Y * Y + C2 * X * Y + D2 * X + E2 * Y + F2
-    if g1 <= tol and g1 >= -tol and g2 <= tol and g2 >= -tol then return X, Y, k end
-    if k >= budget then break end
-    local g1x, g1y = 2 * A1 * X + C1 * Y + D1, 2 * B1 * Y + C1 * X + E1
-    local g2x, g2y = 2 * A2 * X + C2 * Y + D2, 2 * B2 * Y + C2 * X + E2
-    local n1, n2 = g1x * g1x + g1y * g1y, g2x * g2x + g2y * g2y
-    -- a vanishing or non-finite gradient: the update is undefined
-    if not (n1 > 0 and n2 > 0 and n1 + n2 < huge) then break end
-    local s1, s2 = g1 / n1, g2 / n2
-    X, Y = X - s1 * g1x - s2 * g2x, Y - s1 * g1y - s2 * g2y
-    k = k + 1
-  end
+  local converged, k
+  X, Y, k, converged = report(q, X, Y, tol, budget)
+  if converged then return X, Y, k end
   if k >= max_iterations then
     return nil, "solvequad: no convergence in " .. max_iterations .. " iterations", k
   end
