@@ -11,9 +11,6 @@ local M = {}
 -- argument, so `math.atan2` must come first).
 M.atan2 = math.atan2 or math.atan
 
---- `table.unpack` (5.2+) or the 5.1 global `unpack`.
-M.unpack = table.unpack or unpack
-
 local setfenv, loadstring = setfenv, loadstring
 
 --- Compile Lua source text as a chunk whose globals are the table `env` (text only, never

@@ -56,7 +56,8 @@ local function constants(C, camera, half)
 end
 
 -- Sum of squared pixel residuals of a pose Q = {ax, ay, az, bx, by, bz, tx, ty, tz}: the tag's x
--- and y axes in the camera (columns 1 and 2 of R) and t (see M.cost).
+-- and y axes in the camera (columns 1 and 2 of R) and t; math.huge when a corner is not in
+-- front of the camera.
 local function residuals(px, C, Q)
   local fx, fy, cx, cy, half, kind = C[1], C[2], C[3], C[4], C[5], C[6]
   local ax, ay, az, bx, by, bz, tx, ty, tz = Q[1], Q[2], Q[3], Q[4], Q[5], Q[6], Q[7], Q[8], Q[9]
@@ -76,25 +77,6 @@ local function residuals(px, C, Q)
     sum = sum + du * du + dv * dv
   end
   return sum
-end
-
-local cost_constants, cost_pose = {}, {}
-
---- Sum of squared pixel residuals of a pose.
--- @tparam table camera a checked camera
--- @tparam {number,...} px observed pixels, flat
--- @tparam number half half the tag side
--- @tparam {number,...} r flat rotation
--- @tparam number tx
--- @tparam number ty
--- @tparam number tz
--- @treturn number the sum over the four corners of the squared pixel distance (`math.huge` when
---   a corner is not in front of the camera)
-function M.cost(camera, px, half, r, tx, ty, tz)
-  local Q = cost_pose
-  Q[1], Q[2], Q[3], Q[4], Q[5], Q[6], Q[7], Q[8], Q[9] = r[1], r[4], r[7], r[2], r[5], r[8], tx,
-    ty, tz
-  return residuals(px, constants(cost_constants, camera, half), Q)
 end
 
 -- The normal equations H δ = -g of the pose Q (axes a, b; t), accumulated into N as
