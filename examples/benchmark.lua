@@ -1,6 +1,7 @@
 -- Speed and memory of tagpose.solve on a data set, for the Lua it runs on.
 --
 --   lua5.4 examples/benchmark.lua [DATASET_DIR] [--method refined|seed] [--passes N]
+--   valgrind --tool=callgrind lua5.4 examples/benchmark.lua DATASET_DIR --solve-only 1
 --
 -- DATASET_DIR is a directory in the format of shared/bench/dev (camera.lua, corners.csv);
 -- default: the bundled example (examples/data/camera.lua and approach.csv). Prints µs per pose
@@ -23,6 +24,9 @@ do
     elseif a == "--passes" then
       i = i + 1
       args.passes = tonumber(arg[i])
+    elseif a == "--solve-only" then
+      i = i + 1
+      args.solve_only = tonumber(arg[i])
     elseif a:sub(1, 2) == "--" then
       io.stderr:write("unknown option " .. a .. "\n")
       os.exit(2)
@@ -43,6 +47,15 @@ local corners = {}
 for i = 1, n do corners[i] = rows[i].corners end
 local tag_size = camera.tag_size
 local options = { method = args.method }
+
+-- --solve-only N: solve every row N times and stop, for instruction counters (callgrind): the
+-- difference of the counts for N = 1 and N = 0, divided by the rows, is the cost of a solve
+if args.solve_only then
+  for _ = 1, args.solve_only do
+    for i = 1, n do tagpose.solve(corners[i], camera, tag_size, options) end
+  end
+  return
+end
 
 -- one pass over every row; returns CPU seconds
 local function pass(opts)
