@@ -27,6 +27,13 @@ function M.is_positive(v)
   return is_finite(v) and v > 0
 end
 
+--- True for a whole number of at least 1 (a count, such as an iteration bound).
+-- @tparam any v
+-- @treturn boolean
+function M.is_count(v)
+  return is_finite(v) and v >= 1 and v == math.floor(v)
+end
+
 --- Read four corners (`{u, v}` or `{x = u, y = v}` each) into the flat array `out`
 -- (`{u1, v1, ..., u4, v4}`).
 -- @tparam any corners

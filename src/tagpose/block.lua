@@ -269,7 +269,7 @@ local function read_options(options)
   end
   local it = options.max_iterations
   if it ~= nil then
-    if not (is_finite(it) and it >= 1 and it == math.floor(it)) then
+    if not args.is_count(it) then
       return nil, "options.max_iterations: positive integer expected, got " .. describe(it)
     end
     o.max_iterations = it

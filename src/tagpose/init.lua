@@ -19,7 +19,7 @@ local track = require("tagpose.track")
 local pose = require("tagpose.pose")
 
 local is_finite, is_positive, describe = compat.is_finite, args.is_positive, args.describe
-local floor, sqrt, max, huge = math.floor, math.sqrt, math.max, math.huge
+local sqrt, max, huge = math.sqrt, math.max, math.huge
 local to_quaternion = rotation.to_quaternion
 
 local M = {
@@ -108,7 +108,7 @@ local function read_options(options)
   local max_it = options.max_iterations
   if max_it == nil then
     max_it = solvequad.MAX_ITERATIONS
-  elseif not (is_finite(max_it) and max_it >= 1 and floor(max_it) == max_it) then
+  elseif not args.is_count(max_it) then
     return nil, "options.max_iterations: positive integer expected, got " .. describe(max_it)
   end
   local prior, into = options.prior, options.into
