@@ -177,11 +177,12 @@ local function proximate(half)
 end
 
 -- The refined method from a start pose in r1: both local minima over all four corners, chosen
--- between by error or by the tracker, shaped into the result.
-local function refined(camera, half, tx, ty, tz, iterations, prior, into)
+-- between by error or by the tracker, shaped into the result. `proximate_start` says the start
+-- already is the proximate pose, so there is no other start to fall back on.
+local function refined(camera, half, tx, ty, tz, iterations, prior, into, proximate_start)
   local c1, k1, c2, k2
   tx, ty, tz, c1, k1 = refine.refine(camera, px, half, r1, tx, ty, tz)
-  if not (c1 < huge) then
+  if not (c1 < huge) and not proximate_start then
     -- the start is no start (a corner behind the camera at round-off): the proximate pose
     local sx, sy, sz = proximate(half)
     if sx then tx, ty, tz, c1, k1 = refine.refine(camera, px, half, r1, sx, sy, sz) end
@@ -309,8 +310,9 @@ function M.solve(corners, camera, tag_size, options)
     iterations = tz
     tx, ty, tz = proximate(half)
     if not tx then return nil, ty end
+    return refined(camera, half, tx, ty, tz, iterations, prior, into, true)
   end
-  return refined(camera, half, tx, ty, tz, iterations, prior, into)
+  return refined(camera, half, tx, ty, tz, iterations, prior, into, false)
 end
 
 --- Blocks: cubes carrying a tag on each face (`tagpose.block`; it uses `solve` above).
