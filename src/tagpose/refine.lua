@@ -79,78 +79,84 @@ local function residuals(px, C, Q)
   return sum
 end
 
--- The normal equations H δ = -g of the pose Q (axes a, b; t), accumulated into N as
--- {h11, h12, ..., h16, h22, ..., h66, g1, ..., g6} (upper triangle row by row), and the sum of
--- squared residuals (math.huge when a corner is not in front of the camera), for any lens.
--- Per corner, with Y = R·c the corner relative to the tag centre, e = ∂residual/∂X for its
--- camera point X, the residual's Jacobian row over (δω, δt) is (Y × e, e); H += j jᵀ, g += j r.
--- For a pinhole, e_u = (fx/z)·(1, 0, -pu) and e_v = (fy/z)·(0, 1, -pv) give the rows written
--- out below. The sums live in the table: LuaJIT cannot compile a loop that leaves with 27 live
--- accumulators.
+-- One point's share of the normal equations H δ = -g over (δω, δt), added into N as
+-- {h11, h12, ..., h16, h22, ..., h66, g1, ..., g6} (upper triangle row by row, then g), for any
+-- lens; returns the point's squared pixel residual, or math.huge (N untouched) when the point
+-- is not in front of the camera. The point is X = Y + t in the camera frame, Y = R·P its offset
+-- from the body origin, observed at pixel (u, v); C holds the camera constants as `constants`
+-- packs them (fx, fy, cx, cy, -, lens kind, its 8 coefficients). With e = ∂residual/∂X, the
+-- residual's Jacobian row is (Y × e, e); H += j jᵀ, g += j r. For a pinhole,
+-- e_u = (fx/z)·(1, 0, -pu) and e_v = (fy/z)·(0, 1, -pv) give the rows written out below.
+-- `tagpose.rigid` accumulates its points with it too.
+local function accumulate(N, C, y1, y2, y3, tx, ty, tz, u, v)
+  local z = y3 + tz
+  if not (z > 0) then return huge end
+  local fx, fy, kind = C[1], C[2], C[6]
+  local iz = 1 / z
+  local pu, pv = (y1 + tx) * iz, (y2 + ty) * iz
+  if kind == 0 then
+    -- pinhole: the Jacobian rows are u = (fx/z)·(-pu·Y2, Y3 + pu·Y1, -Y2, 1, 0, -pu) and
+    -- v = (fy/z)·(-pv·Y2 - Y3, pv·Y1, Y1, 0, 1, -pv); H += u uᵀ + v vᵀ, g += u ru + v rv
+    local ru, rv = fx * pu + C[3] - u, fy * pv + C[4] - v
+    local fa, fb = fx * iz, fy * iz
+    local u1, u2, u3, u6 = -fa * pu * y2, fa * (y3 + pu * y1), -fa * y2, -fa * pu
+    local v1, v2, v3, v6 = -fb * (pv * y2 + y3), fb * pv * y1, fb * y1, -fb * pv
+    N[1], N[2] = N[1] + u1 * u1 + v1 * v1, N[2] + u1 * u2 + v1 * v2
+    N[3], N[4], N[5] = N[3] + u1 * u3 + v1 * v3, N[4] + u1 * fa, N[5] + v1 * fb
+    N[6], N[7] = N[6] + u1 * u6 + v1 * v6, N[7] + u2 * u2 + v2 * v2
+    N[8], N[9], N[10] = N[8] + u2 * u3 + v2 * v3, N[9] + u2 * fa, N[10] + v2 * fb
+    N[11], N[12] = N[11] + u2 * u6 + v2 * v6, N[12] + u3 * u3 + v3 * v3
+    N[13], N[14], N[15] = N[13] + u3 * fa, N[14] + v3 * fb, N[15] + u3 * u6 + v3 * v6
+    N[16], N[18], N[19] = N[16] + fa * fa, N[18] + fa * u6, N[19] + fb * fb
+    N[20], N[21] = N[20] + fb * v6, N[21] + u6 * u6 + v6 * v6
+    N[22], N[23] = N[22] + u1 * ru + v1 * rv, N[23] + u2 * ru + v2 * rv
+    N[24], N[25] = N[24] + u3 * ru + v3 * rv, N[25] + fa * ru
+    N[26], N[27] = N[26] + fb * rv, N[27] + u6 * ru + v6 * rv
+    return ru * ru + rv * rv
+  end
+  -- through the lens: per residual, e = f·(j_1 ∂pu/∂X + j_2 ∂pv/∂X), ∂p/∂X = (1, 0, -p) / z
+  local xd, yd, j11, j12, j21, j22
+  if kind == 1 then
+    xd, yd, j11, j12, j21, j22 = brown(pu, pv, C[7], C[8], C[9], C[10], C[11], C[12], C[13],
+      C[14])
+  else
+    xd, yd, j11, j12, j21, j22 = fisheye(pu, pv, C[7], C[8], C[9], C[10])
+  end
+  local ru, rv = fx * xd + C[3] - u, fy * yd + C[4] - v
+  for row = 1, 2 do
+    local e1, e2, res = fx * j11 * iz, fx * j12 * iz, ru
+    if row == 2 then e1, e2, res = fy * j21 * iz, fy * j22 * iz, rv end
+    local e3 = -(e1 * pu + e2 * pv)
+    local w1, w2, w3 = y2 * e3 - y3 * e2, y3 * e1 - y1 * e3, y1 * e2 - y2 * e1
+    N[1], N[2], N[3] = N[1] + w1 * w1, N[2] + w1 * w2, N[3] + w1 * w3
+    N[4], N[5], N[6] = N[4] + w1 * e1, N[5] + w1 * e2, N[6] + w1 * e3
+    N[7], N[8], N[9] = N[7] + w2 * w2, N[8] + w2 * w3, N[9] + w2 * e1
+    N[10], N[11], N[12] = N[10] + w2 * e2, N[11] + w2 * e3, N[12] + w3 * w3
+    N[13], N[14], N[15] = N[13] + w3 * e1, N[14] + w3 * e2, N[15] + w3 * e3
+    N[16], N[17], N[18] = N[16] + e1 * e1, N[17] + e1 * e2, N[18] + e1 * e3
+    N[19], N[20], N[21] = N[19] + e2 * e2, N[20] + e2 * e3, N[21] + e3 * e3
+    N[22], N[23], N[24] = N[22] + w1 * res, N[23] + w2 * res, N[24] + w3 * res
+    N[25], N[26], N[27] = N[25] + e1 * res, N[26] + e2 * res, N[27] + e3 * res
+  end
+  return ru * ru + rv * rv
+end
+
+-- The normal equations of the pose Q (axes a, b; t) into N, corner by corner (`accumulate`),
+-- and the sum of squared residuals (math.huge when a corner is not in front of the camera),
+-- for any lens. The sums live in the table: LuaJIT cannot compile a loop that leaves with 27
+-- live accumulators.
 local function linearise_looped(N, px, C, Q)
-  local fx, fy, cx, cy, half, kind = C[1], C[2], C[3], C[4], C[5], C[6]
+  local half = C[5]
   local qax, qay, qaz, qbx, qby, qbz, qx, qy, qz = Q[1], Q[2], Q[3], Q[4], Q[5], Q[6], Q[7], Q[8],
     Q[9]
-  local l1, l2, l3, l4, l5, l6, l7, l8 = C[7], C[8], C[9], C[10], C[11], C[12], C[13], C[14]
   for k = 1, 27 do N[k] = 0 end
   local s = 0
   for i = 1, 4 do
     local ca, cb = CX[i] * half, CY[i] * half
     -- the corner relative to the tag centre (Y), in the camera frame
-    local y1, y2, y3 = qax * ca + qbx * cb, qay * ca + qby * cb, qaz * ca + qbz * cb
-    local z = y3 + qz
-    if not (z > 0) then
-      s = huge
-      break
-    end
-    local iz = 1 / z
-    local pu, pv = (y1 + qx) * iz, (y2 + qy) * iz
-    if kind == 0 then
-      -- pinhole: the Jacobian rows are u = (fx/z)·(-pu·Y2, Y3 + pu·Y1, -Y2, 1, 0, -pu) and
-      -- v = (fy/z)·(-pv·Y2 - Y3, pv·Y1, Y1, 0, 1, -pv); H += u uᵀ + v vᵀ, g += u ru + v rv
-      local ru, rv = fx * pu + cx - px[2 * i - 1], fy * pv + cy - px[2 * i]
-      s = s + ru * ru + rv * rv
-      local fa, fb = fx * iz, fy * iz
-      local u1, u2, u3, u6 = -fa * pu * y2, fa * (y3 + pu * y1), -fa * y2, -fa * pu
-      local v1, v2, v3, v6 = -fb * (pv * y2 + y3), fb * pv * y1, fb * y1, -fb * pv
-      N[1], N[2] = N[1] + u1 * u1 + v1 * v1, N[2] + u1 * u2 + v1 * v2
-      N[3], N[4], N[5] = N[3] + u1 * u3 + v1 * v3, N[4] + u1 * fa, N[5] + v1 * fb
-      N[6], N[7] = N[6] + u1 * u6 + v1 * v6, N[7] + u2 * u2 + v2 * v2
-      N[8], N[9], N[10] = N[8] + u2 * u3 + v2 * v3, N[9] + u2 * fa, N[10] + v2 * fb
-      N[11], N[12] = N[11] + u2 * u6 + v2 * v6, N[12] + u3 * u3 + v3 * v3
-      N[13], N[14], N[15] = N[13] + u3 * fa, N[14] + v3 * fb, N[15] + u3 * u6 + v3 * v6
-      N[16], N[18], N[19] = N[16] + fa * fa, N[18] + fa * u6, N[19] + fb * fb
-      N[20], N[21] = N[20] + fb * v6, N[21] + u6 * u6 + v6 * v6
-      N[22], N[23] = N[22] + u1 * ru + v1 * rv, N[23] + u2 * ru + v2 * rv
-      N[24], N[25] = N[24] + u3 * ru + v3 * rv, N[25] + fa * ru
-      N[26], N[27] = N[26] + fb * rv, N[27] + u6 * ru + v6 * rv
-    else
-      -- through the lens: per residual, e = f·(j_1 ∂pu/∂X + j_2 ∂pv/∂X), ∂p/∂X = (1, 0, -p) / z,
-      -- and the Jacobian row is (Y × e, e)
-      local xd, yd, j11, j12, j21, j22
-      if kind == 1 then
-        xd, yd, j11, j12, j21, j22 = brown(pu, pv, l1, l2, l3, l4, l5, l6, l7, l8)
-      else
-        xd, yd, j11, j12, j21, j22 = fisheye(pu, pv, l1, l2, l3, l4)
-      end
-      local ru, rv = fx * xd + cx - px[2 * i - 1], fy * yd + cy - px[2 * i]
-      s = s + ru * ru + rv * rv
-      for row = 1, 2 do
-        local e1, e2, res = fx * j11 * iz, fx * j12 * iz, ru
-        if row == 2 then e1, e2, res = fy * j21 * iz, fy * j22 * iz, rv end
-        local e3 = -(e1 * pu + e2 * pv)
-        local w1, w2, w3 = y2 * e3 - y3 * e2, y3 * e1 - y1 * e3, y1 * e2 - y2 * e1
-        N[1], N[2], N[3] = N[1] + w1 * w1, N[2] + w1 * w2, N[3] + w1 * w3
-        N[4], N[5], N[6] = N[4] + w1 * e1, N[5] + w1 * e2, N[6] + w1 * e3
-        N[7], N[8], N[9] = N[7] + w2 * w2, N[8] + w2 * w3, N[9] + w2 * e1
-        N[10], N[11], N[12] = N[10] + w2 * e2, N[11] + w2 * e3, N[12] + w3 * w3
-        N[13], N[14], N[15] = N[13] + w3 * e1, N[14] + w3 * e2, N[15] + w3 * e3
-        N[16], N[17], N[18] = N[16] + e1 * e1, N[17] + e1 * e2, N[18] + e1 * e3
-        N[19], N[20], N[21] = N[19] + e2 * e2, N[20] + e2 * e3, N[21] + e3 * e3
-        N[22], N[23], N[24] = N[22] + w1 * res, N[23] + w2 * res, N[24] + w3 * res
-        N[25], N[26], N[27] = N[25] + e1 * res, N[26] + e2 * res, N[27] + e3 * res
-      end
-    end
+    s = s + accumulate(N, C, qax * ca + qbx * cb, qay * ca + qby * cb, qaz * ca + qbz * cb, qx,
+      qy, qz, px[2 * i - 1], px[2 * i])
+    if not (s < huge) then return huge end
   end
   return s
 end
@@ -276,10 +282,11 @@ end
 
 M.linearise_looped, M.linearise_unrolled = linearise_looped, linearise_unrolled
 
--- The damped Gauss-Newton step from the pose P with the normal equations N, the damping raised
--- until the system solves: writes the trial pose into Q and returns the damping used and the
--- predicted squared displacement of the corners; nil when no damping up to 1e8 solves.
-local function step(N, lambda, P, Q)
+-- The damped Gauss-Newton step of the normal equations N, the damping raised (×10) from lambda
+-- until the system solves: returns the damping used, the predicted squared displacement of
+-- the points (δᵀHδ = -δ·g - λ Σ H_ii δ_i²) and δ = (δω, δt); nil when no damping up to 1e8
+-- solves. `tagpose.rigid` steps with it too.
+local function damped_step(N, lambda)
   local d1, d2, d3, d4, d5, d6
   while true do
     local f = 1 + lambda
@@ -290,19 +297,34 @@ local function step(N, lambda, P, Q)
     if lambda > 1e8 then return nil end
     lambda = lambda * 10
   end
-  -- predicted squared displacement of the corners: δᵀHδ = -δ·g - λ Σ H_ii δ_i²
   local disp = -(d1 * N[22] + d2 * N[23] + d3 * N[24] + d4 * N[25] + d5 * N[26] + d6 * N[27])
     - lambda * (N[1] * d1 * d1 + N[7] * d2 * d2 + N[12] * d3 * d3 + N[16] * d4 * d4
       + N[19] * d5 * d5 + N[21] * d6 * d6)
-  -- the trial: R ← C(δω) R by the Cayley transform of w = δω / 2,
-  -- C = I + 2 ([w]× + [w]×²) / (1 + |w|²), an exact rotation that is exp(δω) to first order
+  return lambda, disp, d1, d2, d3, d4, d5, d6
+end
+
+-- The rotation a step δω applies on the left, row-major: the Cayley transform of w = δω / 2,
+-- C = I + 2 ([w]× + [w]×²) / (1 + |w|²), an exact rotation that is exp(δω) to first order.
+local function cayley(d1, d2, d3)
   local w1, w2, w3 = 0.5 * d1, 0.5 * d2, 0.5 * d3
   local ww = w1 * w1 + w2 * w2 + w3 * w3
   local n = 2 / (1 + ww)
-  local c11, c22, c33 = 1 + n * (w1 * w1 - ww), 1 + n * (w2 * w2 - ww), 1 + n * (w3 * w3 - ww)
   local p12, p13, p23 = n * w1 * w2, n * w1 * w3, n * w2 * w3
-  local c12, c21, c13, c31 = p12 - n * w3, p12 + n * w3, p13 + n * w2, p13 - n * w2
-  local c23, c32 = p23 - n * w1, p23 + n * w1
+  return 1 + n * (w1 * w1 - ww), p12 - n * w3, p13 + n * w2,
+    p12 + n * w3, 1 + n * (w2 * w2 - ww), p23 - n * w1,
+    p13 - n * w2, p23 + n * w1, 1 + n * (w3 * w3 - ww)
+end
+
+M.accumulate, M.damped_step, M.cayley = accumulate, damped_step, cayley
+
+-- The damped step from the pose P with the normal equations N: writes the trial pose into Q,
+-- R ← C(δω) R, t ← t + δt, and returns the damping used and the predicted squared displacement
+-- of the corners; nil when no damping up to 1e8 solves.
+local function step(N, lambda, P, Q)
+  local disp, d1, d2, d3, d4, d5, d6
+  lambda, disp, d1, d2, d3, d4, d5, d6 = damped_step(N, lambda)
+  if not lambda then return nil end
+  local c11, c12, c13, c21, c22, c23, c31, c32, c33 = cayley(d1, d2, d3)
   local ax, ay, az, bx, by, bz = P[1], P[2], P[3], P[4], P[5], P[6]
   Q[1], Q[2], Q[3] = c11 * ax + c12 * ay + c13 * az, c21 * ax + c22 * ay + c23 * az,
     c31 * ax + c32 * ay + c33 * az

@@ -20,12 +20,12 @@
 -- `{x1, y1, z1, x2, ...}` in the body frame; pixels are flat `{u1, v1, u2, v2, ...}`.
 -- @module tagpose.rigid
 
-local linsolve = require("tagpose.linsolve")
 local camera_model = require("tagpose.camera")
+local refine = require("tagpose.refine")
 
 local huge = math.huge
 local lens, brown, fisheye = camera_model.lens, camera_model.brown, camera_model.fisheye
-local spd6 = linsolve.spd6
+local accumulate, damped_step, cayley = refine.accumulate, refine.damped_step, refine.cayley
 
 local M = {}
 
@@ -37,24 +37,26 @@ M.STEP_RELATIVE = 1e-3
 --- ... or below `STEP_TOLERANCE`² (px²) per point (exact data).
 M.STEP_TOLERANCE = 1e-5
 
--- constants of a fit: fx, fy, cx, cy, lens kind, its 8 coefficients (see camera.lens), then the
--- axis prior: a (body), u (camera), w, then the plane prior: n, d, v
+-- constants of a fit, packed as `tagpose.refine` packs a camera (its `accumulate` reads them):
+-- fx, fy, cx, cy, an unused slot, the lens kind and its 8 coefficients (see camera.lens), then
+-- the axis prior: a (body, 15-17), u (camera, 18-20), w (21), then the plane prior: n (22-24),
+-- d (25), v (26)
 local K = {}
 
 local function constants(camera, prior)
-  K[1], K[2], K[3], K[4] = camera.fx, camera.fy, camera.cx, camera.cy
-  K[5], K[6], K[7], K[8], K[9], K[10], K[11], K[12], K[13] = lens(camera)
-  for i = 6, 13 do
+  K[1], K[2], K[3], K[4], K[5] = camera.fx, camera.fy, camera.cx, camera.cy, 0
+  K[6], K[7], K[8], K[9], K[10], K[11], K[12], K[13], K[14] = lens(camera)
+  for i = 7, 14 do
     if K[i] == nil then K[i] = 0 end
   end
-  K[20], K[25] = 0, 0
+  K[21], K[26] = 0, 0
   if prior then
     if prior[7] > 0 then
-      for i = 1, 7 do K[13 + i] = prior[i] end
+      for i = 1, 7 do K[14 + i] = prior[i] end
     end
     local v = prior[12]
     if v and v > 0 then
-      for i = 8, 12 do K[13 + i] = prior[i] end
+      for i = 8, 12 do K[14 + i] = prior[i] end
     end
   end
   return K
@@ -63,7 +65,7 @@ end
 -- Sum of squared pixel residuals of points first..last at the pose Q = {r (9), t (3)}, without
 -- the prior; math.huge when a point is not in front of the camera.
 local function residuals(C, Q, points, px, first, last)
-  local kind = C[5]
+  local kind = C[6]
   local sum = 0
   for k = first, last do
     -- (the pose is read from Q inside the loop: with it in locals LuaJIT cannot compile the
@@ -75,9 +77,9 @@ local function residuals(C, Q, points, px, first, last)
     local pu = (Q[1] * a1 + Q[2] * a2 + Q[3] * a3 + Q[10]) / z
     local pv = (Q[4] * a1 + Q[5] * a2 + Q[6] * a3 + Q[11]) / z
     if kind == 1 then
-      pu, pv = brown(pu, pv, C[6], C[7], C[8], C[9], C[10], C[11], C[12], C[13])
+      pu, pv = brown(pu, pv, C[7], C[8], C[9], C[10], C[11], C[12], C[13], C[14])
     elseif kind == 2 then
-      pu, pv = fisheye(pu, pv, C[6], C[7], C[8], C[9])
+      pu, pv = fisheye(pu, pv, C[7], C[8], C[9], C[10])
     end
     local du, dv = C[1] * pu + C[3] - px[2 * k - 1], C[2] * pv + C[4] - px[2 * k]
     sum = sum + du * du + dv * dv
@@ -88,18 +90,18 @@ end
 -- The priors' cost w²·|R·a × u|² + v²·(n·t - d)² at the pose Q.
 local function prior_cost(C, Q)
   local sum = 0
-  local w = C[20]
+  local w = C[21]
   if w > 0 then
-    local b1, b2, b3, u1, u2, u3 = C[14], C[15], C[16], C[17], C[18], C[19]
+    local b1, b2, b3, u1, u2, u3 = C[15], C[16], C[17], C[18], C[19], C[20]
     local a1 = Q[1] * b1 + Q[2] * b2 + Q[3] * b3
     local a2 = Q[4] * b1 + Q[5] * b2 + Q[6] * b3
     local a3 = Q[7] * b1 + Q[8] * b2 + Q[9] * b3
     local e1, e2, e3 = a2 * u3 - a3 * u2, a3 * u1 - a1 * u3, a1 * u2 - a2 * u1
     sum = w * w * (e1 * e1 + e2 * e2 + e3 * e3)
   end
-  local v = C[25]
+  local v = C[26]
   if v > 0 then
-    local e = v * (C[21] * Q[10] + C[22] * Q[11] + C[23] * Q[12] - C[24])
+    local e = v * (C[22] * Q[10] + C[23] * Q[11] + C[24] * Q[12] - C[25])
     sum = sum + e * e
   end
   return sum
@@ -109,7 +111,6 @@ end
 -- g1, ..., g6} (upper triangle row by row, then the gradient), and the cost (math.huge when a
 -- point is not in front of the camera).
 local function linearise(N, C, Q, points, px, n)
-  local fx, fy, cx, cy, kind = C[1], C[2], C[3], C[4], C[5]
   local r1, r2, r3, r4, r5, r6, r7, r8, r9 = Q[1], Q[2], Q[3], Q[4], Q[5], Q[6], Q[7], Q[8], Q[9]
   local tx, ty, tz = Q[10], Q[11], Q[12]
   for k = 1, 27 do N[k] = 0 end
@@ -118,63 +119,14 @@ local function linearise(N, C, Q, points, px, n)
     local b = 3 * k
     local a1, a2, a3 = points[b - 2], points[b - 1], points[b]
     -- the point relative to the body origin (Y), in the camera frame
-    local y1, y2, y3 = r1 * a1 + r2 * a2 + r3 * a3, r4 * a1 + r5 * a2 + r6 * a3,
-      r7 * a1 + r8 * a2 + r9 * a3
-    local z = y3 + tz
-    if not (z > 0) then return huge end
-    local iz = 1 / z
-    local pu, pv = (y1 + tx) * iz, (y2 + ty) * iz
-    if kind == 0 then
-      -- pinhole: rows u = (fx/z)·(-pu·Y2, Y3 + pu·Y1, -Y2, 1, 0, -pu),
-      -- v = (fy/z)·(-pv·Y2 - Y3, pv·Y1, Y1, 0, 1, -pv)
-      local ru, rv = fx * pu + cx - px[2 * k - 1], fy * pv + cy - px[2 * k]
-      s = s + ru * ru + rv * rv
-      local fa, fb = fx * iz, fy * iz
-      local u1, u2, u3, u6 = -fa * pu * y2, fa * (y3 + pu * y1), -fa * y2, -fa * pu
-      local v1, v2, v3, v6 = -fb * (pv * y2 + y3), fb * pv * y1, fb * y1, -fb * pv
-      N[1], N[2] = N[1] + u1 * u1 + v1 * v1, N[2] + u1 * u2 + v1 * v2
-      N[3], N[4], N[5] = N[3] + u1 * u3 + v1 * v3, N[4] + u1 * fa, N[5] + v1 * fb
-      N[6], N[7] = N[6] + u1 * u6 + v1 * v6, N[7] + u2 * u2 + v2 * v2
-      N[8], N[9], N[10] = N[8] + u2 * u3 + v2 * v3, N[9] + u2 * fa, N[10] + v2 * fb
-      N[11], N[12] = N[11] + u2 * u6 + v2 * v6, N[12] + u3 * u3 + v3 * v3
-      N[13], N[14], N[15] = N[13] + u3 * fa, N[14] + v3 * fb, N[15] + u3 * u6 + v3 * v6
-      N[16], N[18], N[19] = N[16] + fa * fa, N[18] + fa * u6, N[19] + fb * fb
-      N[20], N[21] = N[20] + fb * v6, N[21] + u6 * u6 + v6 * v6
-      N[22], N[23] = N[22] + u1 * ru + v1 * rv, N[23] + u2 * ru + v2 * rv
-      N[24], N[25] = N[24] + u3 * ru + v3 * rv, N[25] + fa * ru
-      N[26], N[27] = N[26] + fb * rv, N[27] + u6 * ru + v6 * rv
-    else
-      -- through the lens: e = f·(j_1 ∂pu/∂X + j_2 ∂pv/∂X), ∂p/∂X = (1, 0, -p) / z; row (Y × e, e)
-      local xd, yd, j11, j12, j21, j22
-      if kind == 1 then
-        xd, yd, j11, j12, j21, j22 = brown(pu, pv, C[6], C[7], C[8], C[9], C[10], C[11], C[12],
-          C[13])
-      else
-        xd, yd, j11, j12, j21, j22 = fisheye(pu, pv, C[6], C[7], C[8], C[9])
-      end
-      local ru, rv = fx * xd + cx - px[2 * k - 1], fy * yd + cy - px[2 * k]
-      s = s + ru * ru + rv * rv
-      for row = 1, 2 do
-        local e1, e2, res = fx * j11 * iz, fx * j12 * iz, ru
-        if row == 2 then e1, e2, res = fy * j21 * iz, fy * j22 * iz, rv end
-        local e3 = -(e1 * pu + e2 * pv)
-        local w1, w2, w3 = y2 * e3 - y3 * e2, y3 * e1 - y1 * e3, y1 * e2 - y2 * e1
-        N[1], N[2], N[3] = N[1] + w1 * w1, N[2] + w1 * w2, N[3] + w1 * w3
-        N[4], N[5], N[6] = N[4] + w1 * e1, N[5] + w1 * e2, N[6] + w1 * e3
-        N[7], N[8], N[9] = N[7] + w2 * w2, N[8] + w2 * w3, N[9] + w2 * e1
-        N[10], N[11], N[12] = N[10] + w2 * e2, N[11] + w2 * e3, N[12] + w3 * w3
-        N[13], N[14], N[15] = N[13] + w3 * e1, N[14] + w3 * e2, N[15] + w3 * e3
-        N[16], N[17], N[18] = N[16] + e1 * e1, N[17] + e1 * e2, N[18] + e1 * e3
-        N[19], N[20], N[21] = N[19] + e2 * e2, N[20] + e2 * e3, N[21] + e3 * e3
-        N[22], N[23], N[24] = N[22] + w1 * res, N[23] + w2 * res, N[24] + w3 * res
-        N[25], N[26], N[27] = N[25] + e1 * res, N[26] + e2 * res, N[27] + e3 * res
-      end
-    end
+    s = s + accumulate(N, C, r1 * a1 + r2 * a2 + r3 * a3, r4 * a1 + r5 * a2 + r6 * a3,
+      r7 * a1 + r8 * a2 + r9 * a3, tx, ty, tz, px[2 * k - 1], px[2 * k])
+    if not (s < huge) then return huge end
   end
-  local w = C[20]
+  local w = C[21]
   if w > 0 then
     -- the prior e = w·(A × u), A = R·a: ∂e/∂ω = w·(A uᵀ - (A·u) I); rows j = 1..3 of it
-    local b1, b2, b3, u1, u2, u3 = C[14], C[15], C[16], C[17], C[18], C[19]
+    local b1, b2, b3, u1, u2, u3 = C[15], C[16], C[17], C[18], C[19], C[20]
     local A1, A2, A3 = r1 * b1 + r2 * b2 + r3 * b3, r4 * b1 + r5 * b2 + r6 * b3,
       r7 * b1 + r8 * b2 + r9 * b3
     local d = A1 * u1 + A2 * u2 + A3 * u3
@@ -190,11 +142,11 @@ local function linearise(N, C, Q, points, px, n)
       N[22], N[23], N[24] = N[22] + j1 * er, N[23] + j2 * er, N[24] + j3 * er
     end
   end
-  local v = C[25]
+  local v = C[26]
   if v > 0 then
     -- the plane prior e = v·(n·t - d): ∂e/∂t = v·n
-    local n1, n2, n3 = v * C[21], v * C[22], v * C[23]
-    local e = n1 * tx + n2 * ty + n3 * tz - v * C[24]
+    local n1, n2, n3 = v * C[22], v * C[23], v * C[24]
+    local e = n1 * tx + n2 * ty + n3 * tz - v * C[25]
     s = s + e * e
     N[16], N[17], N[18] = N[16] + n1 * n1, N[17] + n1 * n2, N[18] + n1 * n3
     N[19], N[20], N[21] = N[19] + n2 * n2, N[20] + n2 * n3, N[21] + n3 * n3
@@ -203,31 +155,14 @@ local function linearise(N, C, Q, points, px, n)
   return s
 end
 
--- The damped Gauss-Newton step from the pose P: writes the trial pose into Q, returns the
--- damping used and the predicted squared displacement of the points; nil when no damping up
--- to 1e8 solves.
+-- The damped step from the pose P (`refine.damped_step`, `refine.cayley`): writes the trial
+-- pose into Q, R ← C(δω)·R, t ← t + δt, and returns the damping used and the predicted squared
+-- displacement of the points; nil when no damping up to 1e8 solves.
 local function step(N, lambda, P, Q)
-  local d1, d2, d3, d4, d5, d6
-  while true do
-    local f = 1 + lambda
-    d1, d2, d3, d4, d5, d6 = spd6(N[1] * f, N[2], N[3], N[4], N[5], N[6], N[7] * f, N[8],
-      N[9], N[10], N[11], N[12] * f, N[13], N[14], N[15], N[16] * f, N[17], N[18],
-      N[19] * f, N[20], N[21] * f, -N[22], -N[23], -N[24], -N[25], -N[26], -N[27])
-    if d1 then break end
-    if lambda > 1e8 then return nil end
-    lambda = lambda * 10
-  end
-  local disp = -(d1 * N[22] + d2 * N[23] + d3 * N[24] + d4 * N[25] + d5 * N[26] + d6 * N[27])
-    - lambda * (N[1] * d1 * d1 + N[7] * d2 * d2 + N[12] * d3 * d3 + N[16] * d4 * d4
-      + N[19] * d5 * d5 + N[21] * d6 * d6)
-  -- R ← C(δω)·R, C the Cayley transform of δω / 2 (an exact rotation)
-  local w1, w2, w3 = 0.5 * d1, 0.5 * d2, 0.5 * d3
-  local ww = w1 * w1 + w2 * w2 + w3 * w3
-  local n = 2 / (1 + ww)
-  local c11, c22, c33 = 1 + n * (w1 * w1 - ww), 1 + n * (w2 * w2 - ww), 1 + n * (w3 * w3 - ww)
-  local p12, p13, p23 = n * w1 * w2, n * w1 * w3, n * w2 * w3
-  local c12, c21, c13, c31 = p12 - n * w3, p12 + n * w3, p13 + n * w2, p13 - n * w2
-  local c23, c32 = p23 - n * w1, p23 + n * w1
+  local disp, d1, d2, d3, d4, d5, d6
+  lambda, disp, d1, d2, d3, d4, d5, d6 = damped_step(N, lambda)
+  if not lambda then return nil end
+  local c11, c12, c13, c21, c22, c23, c31, c32, c33 = cayley(d1, d2, d3)
   for j = 1, 3 do
     local a, b, c = P[j], P[3 + j], P[6 + j]
     Q[j] = c11 * a + c12 * b + c13 * c
