@@ -213,6 +213,14 @@ local function read_previous(previous)
   return out, previous.next_id
 end
 
+-- the scalar options: name, check, what the check expects
+local SCALAR_OPTIONS = {
+  "up_tolerance", is_positive, "positive number",
+  "floor", is_finite, "finite number",
+  "floor_tolerance", is_positive, "positive number",
+  "max_iterations", args.is_count, "positive integer",
+}
+
 local function read_options(options)
   local o = { faces = nil, up = nil, previous = nil, up_tolerance = M.UP_TOLERANCE,
     floor = nil, floor_tolerance = nil, max_iterations = M.MAX_ITERATIONS }
@@ -245,35 +253,17 @@ local function read_options(options)
       o.noise_sse, o.noise_dof = noise.sse, noise.dof
     end
   end
-  local tol = options.up_tolerance
-  if tol ~= nil then
-    if not is_positive(tol) then
-      return nil, "options.up_tolerance: positive number expected, got " .. describe(tol)
+  for i = 1, #SCALAR_OPTIONS, 3 do
+    local name, ok, what = SCALAR_OPTIONS[i], SCALAR_OPTIONS[i + 1], SCALAR_OPTIONS[i + 2]
+    local v = options[name]
+    if v ~= nil then
+      if not ok(v) then
+        return nil, "options." .. name .. ": " .. what .. " expected, got " .. describe(v)
+      end
+      o[name] = v
     end
-    o.up_tolerance = tol
   end
-  local floor = options.floor
-  if floor ~= nil then
-    if not is_finite(floor) then
-      return nil, "options.floor: finite number expected, got " .. describe(floor)
-    end
-    if not o.up then return nil, "options.floor: needs options.up (a vector)" end
-    o.floor = floor
-  end
-  tol = options.floor_tolerance
-  if tol ~= nil then
-    if not is_positive(tol) then
-      return nil, "options.floor_tolerance: positive number expected, got " .. describe(tol)
-    end
-    o.floor_tolerance = tol
-  end
-  local it = options.max_iterations
-  if it ~= nil then
-    if not args.is_count(it) then
-      return nil, "options.max_iterations: positive integer expected, got " .. describe(it)
-    end
-    o.max_iterations = it
-  end
+  if o.floor and not o.up then return nil, "options.floor: needs options.up (a vector)" end
   return o
 end
 
