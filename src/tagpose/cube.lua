@@ -20,6 +20,8 @@
 -- with outward normal `-G·e_z`.
 -- @module tagpose.cube
 
+local rotation = require("tagpose.rotation")
+
 local abs, min = math.abs, math.min
 
 local M = {}
@@ -164,21 +166,8 @@ local relative = {} -- scratch: rᵀ·ref
 
 function M.closest(r, ref, out)
   -- G = nearest(rᵀ·ref)
-  local m = relative
-  for i = 1, 3 do
-    for j = 1, 3 do
-      m[(i - 1) * 3 + j] = r[i] * ref[j] + r[3 + i] * ref[3 + j] + r[6 + i] * ref[6 + j]
-    end
-  end
-  local g = ROTATIONS[(M.nearest(m))]
-  local r1, r2, r3, r4, r5, r6, r7, r8, r9 = r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8], r[9]
-  for j = 1, 3 do
-    local a, b, c = g[j], g[3 + j], g[6 + j]
-    out[j] = r1 * a + r2 * b + r3 * c
-    out[3 + j] = r4 * a + r5 * b + r6 * c
-    out[6 + j] = r7 * a + r8 * b + r9 * c
-  end
-  return out
+  local g = ROTATIONS[(M.nearest(rotation.transpose_multiply(r, ref, relative)))]
+  return rotation.multiply(r, g, out)
 end
 
 --- The canonical frame among a block rotation's 24 equivalents: block z is the face axis
