@@ -30,6 +30,7 @@ build = {
     ["tagpose.camera"] = "src/tagpose/camera.lua",
     ["tagpose.compat"] = "src/tagpose/compat.lua",
     ["tagpose.cube"] = "src/tagpose/cube.lua",
+    ["tagpose.ippe"] = "src/tagpose/ippe.lua",
     ["tagpose.linsolve"] = "src/tagpose/linsolve.lua",
     ["tagpose.log"] = "src/tagpose/log.lua",
     ["tagpose.plot"] = "src/tagpose/plot.lua",
