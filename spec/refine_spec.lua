@@ -98,6 +98,36 @@ describe("tagpose.refine", function()
       end
     end)
 
+    it("stops within STEP_RELATIVE of the minimum's cost when a step leaves a small remainder",
+      function()
+        -- tagpose.solve refines from the local starts and stops after the first step when its
+        -- second-order remainder is negligible (a bound, not an exact prediction: hence the
+        -- factor 2); a refinement run to 1e-12 from the pose must not find a cost lower by more
+        -- than the rule allows (noise 0.2 to 2 px, tags 15 to 300 px)
+        local relative, bound = refine.STEP_RELATIVE, refine.MAX_ITERATIONS
+        local ok, err = pcall(function()
+          for n = 1, 150 do
+            local s = 0.05
+            local r, t = geometry.random_pose(rng, camera, s, { width = rng.log_uniform(15, 300) })
+            local px = noisy(rng, geometry.project(camera, r, t, s), rng.log_uniform(0.2, 2))
+            local pose = tagpose.solve(px, camera, s)
+            for _, p in ipairs({ pose }) do
+              local cost = 4 * p.error ^ 2
+              local est = rotation.from_nested(p.rotation, {})
+              refine.STEP_RELATIVE, refine.MAX_ITERATIONS = 1e-12, 200
+              local _, _, _, best = refine.refine(camera, flat_pixels(px), s / 2, est,
+                p.position.x, p.position.y, p.position.z)
+              refine.STEP_RELATIVE, refine.MAX_ITERATIONS = relative, bound
+              assert.is_true(best <= cost + 1e-12, "case " .. n)
+              assert.is_true(cost <= best * (1 + 2 * relative) + 1e-12,
+                ("case %d: stopped at %.6g, minimum %.6g"):format(n, cost, best))
+            end
+          end
+        end)
+        refine.STEP_RELATIVE, refine.MAX_ITERATIONS = relative, bound
+        assert(ok, err)
+      end)
+
     it("never needs more than its bound", function()
       local s = 0.05
       local r, t = geometry.random_pose(rng, camera, s)

@@ -17,6 +17,7 @@ local refine = require("tagpose.refine")
 local rotation = require("tagpose.rotation")
 local track = require("tagpose.track")
 local pose = require("tagpose.pose")
+local ippe = require("tagpose.ippe")
 
 local is_finite, is_positive, describe = compat.is_finite, args.is_positive, args.describe
 local sqrt, max, huge = math.sqrt, math.max, math.huge
@@ -176,26 +177,55 @@ local function proximate(half)
   return square.proximate_pose(m, depth[1], depth[2], depth[3], depth[4], half, r1)
 end
 
--- The refined method from a start pose in r1: both local minima over all four corners, chosen
--- between by error or by the tracker, shaped into the result. `proximate_start` says the start
--- already is the proximate pose, so there is no other start to fall back on.
-local function refined(camera, half, tx, ty, tz, iterations, prior, into, proximate_start)
+-- The two local minima of the planar ambiguity, refined over all four corners from the start
+-- in r1 (tx, ty, tz) and the one in r2 (ux, uy, uz) — or, when ux is nil, the mirror of the
+-- first minimum. Returns both (translations, sums of squared residuals, linearisations); a sum
+-- is math.huge where its start put a corner behind the camera.
+local function minima(camera, half, tx, ty, tz, ux, uy, uz)
   local c1, k1, c2, k2
   tx, ty, tz, c1, k1 = refine.refine(camera, px, half, r1, tx, ty, tz)
-  if not (c1 < huge) and not proximate_start then
-    -- the start is no start (a corner behind the camera at round-off): the proximate pose
-    local sx, sy, sz = proximate(half)
-    if sx then tx, ty, tz, c1, k1 = refine.refine(camera, px, half, r1, sx, sy, sz) end
+  if ux == nil then
+    refine.mirror(r1, tx, ty, tz, r2)
+    ux, uy, uz = tx, ty, tz
   end
-  -- and the other local minimum of the planar ambiguity
-  refine.mirror(r1, tx, ty, tz, r2)
-  local ux, uy, uz
-  ux, uy, uz, c2, k2 = refine.refine(camera, px, half, r2, tx, ty, tz)
+  ux, uy, uz, c2, k2 = refine.refine(camera, px, half, r2, ux, uy, uz)
+  return tx, ty, tz, c1, k1, ux, uy, uz, c2, k2
+end
+
+-- The refined method: both minima from the starts in order — the local (IPPE) poses of the
+-- square, else the report's method and its mirror, else the proximate pose and its mirror —
+-- chosen between by error or by the tracker, shaped into the result.
+local function refined(camera, half, tol, max_it, prior, into)
+  local iterations, spent = 0, 0
+  local tx, ty, tz, k1, ux, uy, uz, k2
+  local c1, c2 = huge, huge
+  local sx, sy, sz = ippe.poses(m, depth[1], depth[2], depth[3], depth[4], half, r1, r2)
+  if sx then
+    tx, ty, tz, c1, k1, ux, uy, uz, c2, k2 = minima(camera, half, sx, sy, sz, sx, sy, sz)
+  end
+  if not (c1 < huge or c2 < huge) then
+    -- no start yet: the report's method, else the proximate pose
+    if k1 then spent = k1 + k2 end
+    local why
+    sx, sy, sz, iterations = seed(half, tol, max_it)
+    if not sx then
+      why, iterations = sy, sz
+      sx, sy, sz = proximate(half)
+      if not sx then return nil, sy end
+    end
+    tx, ty, tz, c1, k1, ux, uy, uz, c2, k2 = minima(camera, half, sx, sy, sz)
+    if not (c1 < huge or c2 < huge) and why == nil then
+      spent = spent + k1 + k2
+      sx, sy, sz = proximate(half)
+      if sx then tx, ty, tz, c1, k1, ux, uy, uz, c2, k2 = minima(camera, half, sx, sy, sz) end
+    end
+  end
+  k1 = k1 + spent
   if not (c1 < huge) then
     if not (c2 < huge) then
       return nil, "refine: no pose puts every corner in front of the camera"
     end
-    -- only the mirrored start led to a pose: it is the one
+    -- only the second start led to a pose: it is the one
     for i = 1, 9 do r1[i] = r2[i] end
     tx, ty, tz, c1, c2 = ux, uy, uz, c2, huge
   end
@@ -207,12 +237,12 @@ local function refined(camera, half, tx, ty, tz, iterations, prior, into, proxim
     -- two minima, unless both starts reached the same one (the quaternions' chord, q ~ -q, below
     -- 5e-7: an angle below 1e-6 rad)
     local dw, dx, dy, dz = w1 - w2, x1 - x2, y1 - y2, z1 - z2
-    local sw, sx, sy, sz = w1 + w2, x1 + x2, y1 + y2, z1 + z2
-    local dp, dm = dw * dw + dx * dx + dy * dy + dz * dz, sw * sw + sx * sx + sy * sy + sz * sz
+    local ow, ox, oy, oz = w1 + w2, x1 + x2, y1 + y2, z1 + z2
+    local dp, dm = dw * dw + dx * dx + dy * dy + dz * dz, ow * ow + ox * ox + oy * oy + oz * oz
     has2 = (dp < dm and dp or dm) > 2.5e-13
   end
   -- which candidate is the pose: the smaller error, or the tracker's choice
-  local first = (has2 and c2 < c1) and 2 or 1
+  local first = c2 < c1 and 2 or 1
   local out_state = into and type(into.track) == "table" and into.track or state
   if first == 1 then
     qa[1], qa[2], qa[3], qa[4], qb[1], qb[2], qb[3], qb[4] = w1, x1, y1, z1, w2, x2, y2, z2
@@ -294,25 +324,16 @@ function M.solve(corners, camera, tag_size, options)
   local ok, why = prepare(camera)
   if not ok then return nil, why end
   local half = 0.5 * tag_size
+  if method == "refined" then return refined(camera, half, tol, max_it, prior, into) end
   local tx, ty, tz, iterations = seed(half, tol, max_it)
-  if method == "seed" then
-    if not tx then return nil, ty end
-    local err = pose.reprojection_error(camera, r1, tx, ty, tz, half, px)
-    if not finite_pose(r1, tx, ty, tz, err) then
-      return nil, "tagpose: no finite pose for these corners"
-    end
-    local result = pose.result(r1, tx, ty, tz, err, iterations, nil, into)
-    if into then into.alternative, into.track = nil, nil end
-    return result
+  if not tx then return nil, ty end
+  local err = pose.reprojection_error(camera, r1, tx, ty, tz, half, px)
+  if not finite_pose(r1, tx, ty, tz, err) then
+    return nil, "tagpose: no finite pose for these corners"
   end
-  if not tx then
-    -- the refinement starts from the proximate pose where the report's method has none
-    iterations = tz
-    tx, ty, tz = proximate(half)
-    if not tx then return nil, ty end
-    return refined(camera, half, tx, ty, tz, iterations, prior, into, true)
-  end
-  return refined(camera, half, tx, ty, tz, iterations, prior, into, false)
+  local result = pose.result(r1, tx, ty, tz, err, iterations, nil, into)
+  if into then into.alternative, into.track = nil, nil end
+  return result
 end
 
 --- Blocks: cubes carrying a tag on each face (`tagpose.block`; it uses `solve` above).

@@ -318,9 +318,16 @@ end
 M.accumulate, M.damped_step, M.cayley = accumulate, damped_step, cayley
 
 -- The damped step from the pose P with the normal equations N: writes the trial pose into Q,
--- R ← C(δω) R, t ← t + δt, and returns the damping used and the predicted squared displacement
--- of the corners; nil when no damping up to 1e8 solves.
-local function step(N, lambda, P, Q)
+-- R ← C(δω) R, t ← t + δt, and returns the damping used, the predicted squared displacement
+-- of the corners, and a bound on the squared displacement the step leaves to the next one
+-- (`remainder`); nil when no damping up to 1e8 solves.
+--
+-- The remainder: a step is exact to first order, so the next step from Q is set by what the
+-- step's second order moves the corners, about `f (k |δω| + |δt| / z)²` pixels per corner
+-- (f the larger focal length, z the centre's depth, k² = side / z: a rotation by |δω| moves a
+-- corner off its tangent by about |δω|² times its distance from the centre; a translation
+-- bends the projection by (|δt| / z)² times f), squared and summed over the four corners.
+local function step(N, lambda, P, Q, C)
   local disp, d1, d2, d3, d4, d5, d6
   lambda, disp, d1, d2, d3, d4, d5, d6 = damped_step(N, lambda)
   if not lambda then return nil end
@@ -330,8 +337,12 @@ local function step(N, lambda, P, Q)
     c31 * ax + c32 * ay + c33 * az
   Q[4], Q[5], Q[6] = c11 * bx + c12 * by + c13 * bz, c21 * bx + c22 * by + c23 * bz,
     c31 * bx + c32 * by + c33 * bz
-  Q[7], Q[8], Q[9] = P[7] + d4, P[8] + d5, P[9] + d6
-  return lambda, disp
+  local z = P[9]
+  Q[7], Q[8], Q[9] = P[7] + d4, P[8] + d5, z + d6
+  local f = C[1] > C[2] and C[1] or C[2]
+  local e = f * (sqrt(2 * C[5] / z * (d1 * d1 + d2 * d2 + d3 * d3))
+    + sqrt(d4 * d4 + d5 * d5 + d6 * d6) / z) ^ 2
+  return lambda, disp, 4 * e * e
 end
 
 local normal_a, normal_b = {}, {} -- normal equations, filled by linearise
@@ -369,10 +380,15 @@ function M.refine(camera, px, half, r, tx, ty, tz, max_iterations)
   -- only, and the one taken is linearised then
   local k, lambda, fresh = 1, 1e-6, true
   while true do
-    local disp
-    lambda, disp = step(A, lambda, P, Q)
+    local disp, remainder
+    lambda, disp, remainder = step(A, lambda, P, Q, C)
     if not lambda then break end
-    local last = disp < floor + relative * sum or k >= max_iterations
+    -- last: this step is negligible, or no more linearisations are allowed; or it is the first
+    -- step from the start, undamped, and the step it leaves is negligible (from a start near a
+    -- minimum Gauss-Newton converges quadratically, so the steps after that one are smaller
+    -- still; farther away it may not, and the rule is not used)
+    local small = disp < floor + relative * sum or k >= max_iterations
+    local last = small or (k == 1 and lambda < 1e-3 and remainder < relative * (sum - disp))
     local s
     if last or not fresh then
       s = residuals(px, C, Q)
@@ -394,7 +410,7 @@ function M.refine(camera, px, half, r, tx, ty, tz, max_iterations)
       if lambda > 1e-12 then lambda = lambda * 0.1 end
     else
       -- the trial raised the cost: more damping from the same pose and equations
-      if last then break end
+      if small then break end
       lambda = lambda * 10
       if lambda > 1e8 then break end
       fresh = false
