@@ -34,14 +34,22 @@ local CX, CY = M.CORNER_X, M.CORNER_Y
 -- @treturn number RMS over the corners of the distance between observed and projected pixel
 --   (`math.huge` when a corner is not in front of the camera)
 function M.reprojection_error(camera, r, tx, ty, tz, half, px)
+  local pinhole = camera.distortion == nil
+  local fx, fy, cx, cy = camera.fx, camera.fy, camera.cx, camera.cy
+  local r1, r2, r4, r5, r7, r8 = r[1], r[2], r[4], r[5], r[7], r[8]
   local sum = 0
   for i = 1, 4 do
     local a, b = CX[i] * half, CY[i] * half
-    local x = r[1] * a + r[2] * b + tx
-    local y = r[4] * a + r[5] * b + ty
-    local z = r[7] * a + r[8] * b + tz
+    local x = r1 * a + r2 * b + tx
+    local y = r4 * a + r5 * b + ty
+    local z = r7 * a + r8 * b + tz
     if not (z > 0) then return math.huge end
-    local u, v = project(camera, x, y, z)
+    local u, v
+    if pinhole then
+      u, v = fx * x / z + cx, fy * y / z + cy
+    else
+      u, v = project(camera, x, y, z)
+    end
     local du, dv = u - px[2 * i - 1], v - px[2 * i]
     sum = sum + du * du + dv * dv
   end
