@@ -42,7 +42,7 @@ local function check_pose(pose, camera, s, corners, options)
   if not finite(sum) then return "non-finite field" end
   local max_it = options and options.max_iterations or solvequad.MAX_ITERATIONS
   if pose.iterations > max_it then return "solveQuad iterations above the bound" end
-  if (pose.refine_iterations or 0) > 2 * refine.MAX_ITERATIONS then
+  if (pose.refine_iterations or 0) > 2 * refine.MAX_ITERATIONS + 4 then
     return "refinement iterations above the bound"
   end
   local e = reprojection(pose, camera, s, corners)

@@ -177,50 +177,22 @@ local function proximate(half)
   return square.proximate_pose(m, depth[1], depth[2], depth[3], depth[4], half, r1)
 end
 
--- The two local minima of the planar ambiguity, refined over all four corners from the start
--- in r1 (tx, ty, tz) and the one in r2 (ux, uy, uz) — or, when ux is nil, the mirror of the
--- first minimum. Returns both (translations, sums of squared residuals, linearisations); a sum
--- is math.huge where its start put a corner behind the camera.
-local function minima(camera, half, tx, ty, tz, ux, uy, uz)
-  local c1, k1, c2, k2
+-- The two local minima of the planar ambiguity from one start in r1: the start refined over
+-- all four corners, and the mirror of that minimum refined. Returns both (translations, sums
+-- of squared residuals, linearisations); a sum is math.huge where its start put a corner
+-- behind the camera.
+local function minima(camera, half, tx, ty, tz)
+  local c1, k1, c2, k2, ux, uy, uz
   tx, ty, tz, c1, k1 = refine.refine(camera, px, half, r1, tx, ty, tz)
-  if ux == nil then
-    refine.mirror(r1, tx, ty, tz, r2)
-    ux, uy, uz = tx, ty, tz
-  end
-  ux, uy, uz, c2, k2 = refine.refine(camera, px, half, r2, ux, uy, uz)
+  refine.mirror(r1, tx, ty, tz, r2)
+  ux, uy, uz, c2, k2 = refine.refine(camera, px, half, r2, tx, ty, tz)
   return tx, ty, tz, c1, k1, ux, uy, uz, c2, k2
 end
 
--- The refined method: both minima from the starts in order — the local (IPPE) poses of the
--- square, else the report's method and its mirror, else the proximate pose and its mirror —
--- chosen between by error or by the tracker, shaped into the result.
-local function refined(camera, half, tol, max_it, prior, into)
-  local iterations, spent = 0, 0
-  local tx, ty, tz, k1, ux, uy, uz, k2
-  local c1, c2 = huge, huge
-  local sx, sy, sz = ippe.poses(m, depth[1], depth[2], depth[3], depth[4], half, r1, r2)
-  if sx then
-    tx, ty, tz, c1, k1, ux, uy, uz, c2, k2 = minima(camera, half, sx, sy, sz, sx, sy, sz)
-  end
-  if not (c1 < huge or c2 < huge) then
-    -- no start yet: the report's method, else the proximate pose
-    if k1 then spent = k1 + k2 end
-    local why
-    sx, sy, sz, iterations = seed(half, tol, max_it)
-    if not sx then
-      why, iterations = sy, sz
-      sx, sy, sz = proximate(half)
-      if not sx then return nil, sy end
-    end
-    tx, ty, tz, c1, k1, ux, uy, uz, c2, k2 = minima(camera, half, sx, sy, sz)
-    if not (c1 < huge or c2 < huge) and why == nil then
-      spent = spent + k1 + k2
-      sx, sy, sz = proximate(half)
-      if sx then tx, ty, tz, c1, k1, ux, uy, uz, c2, k2 = minima(camera, half, sx, sy, sz) end
-    end
-  end
-  k1 = k1 + spent
+-- The result of the refined method from the two minima (the first in r1, the second in r2;
+-- a sum of squares math.huge where that start led nowhere): the better by error, or the
+-- tracker's choice, as the pose, the other as its alternative.
+local function choose(tx, ty, tz, c1, k1, ux, uy, uz, c2, k2, iterations, prior, into)
   if not (c1 < huge) then
     if not (c2 < huge) then
       return nil, "refine: no pose puts every corner in front of the camera"
@@ -287,6 +259,44 @@ local function refined(camera, half, tol, max_it, prior, into)
     for i = 1, 10 do st[i] = out_state[i] end
   end
   return result
+end
+
+-- The refined method when the local starts put a corner behind the camera (at round-off, on
+-- tiny or extreme tags): the report's pose and its mirror, else the proximate pose and its
+-- mirror. `spent`: the linearisations already used.
+local function fallback(camera, half, tol, max_it, prior, into, spent)
+  local sx, sy, sz, iterations = seed(half, tol, max_it)
+  local why
+  if not sx then
+    why, iterations = sy, sz
+    sx, sy, sz = proximate(half)
+    if not sx then return nil, sy end
+  end
+  local tx, ty, tz, c1, k1, ux, uy, uz, c2, k2 = minima(camera, half, sx, sy, sz)
+  if not (c1 < huge or c2 < huge) and why == nil then
+    spent = spent + k1 + k2
+    sx, sy, sz = proximate(half)
+    if sx then tx, ty, tz, c1, k1, ux, uy, uz, c2, k2 = minima(camera, half, sx, sy, sz) end
+  end
+  return choose(tx, ty, tz, c1, k1 + spent, ux, uy, uz, c2, k2, iterations, prior, into)
+end
+
+-- The refined method: both local minima of the planar ambiguity, refined over all four corners
+-- from the local (IPPE) poses of the square, then chosen between. (The stages are tail calls
+-- so that few values are live where they branch: LuaJIT cannot compile side exits that carry
+-- many.)
+local function refined(camera, half, tol, max_it, prior, into)
+  local spent = 0
+  local sx, sy, sz = ippe.poses(m, depth[1], depth[2], depth[3], depth[4], half, r1, r2)
+  if sx then
+    local tx, ty, tz, c1, k1 = refine.refine(camera, px, half, r1, sx, sy, sz)
+    local ux, uy, uz, c2, k2 = refine.refine(camera, px, half, r2, sx, sy, sz)
+    if c1 < huge or c2 < huge then
+      return choose(tx, ty, tz, c1, k1, ux, uy, uz, c2, k2, 0, prior, into)
+    end
+    spent = k1 + k2
+  end
+  return fallback(camera, half, tol, max_it, prior, into, spent)
 end
 
 --- Solve the pose of one tag.

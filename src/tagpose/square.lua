@@ -26,7 +26,7 @@
 
 local rotation = require("tagpose.rotation")
 
-local sqrt, abs = math.sqrt, math.abs
+local sqrt, abs, max = math.sqrt, math.abs, math.max
 local huge = math.huge
 
 local M = {}
@@ -83,7 +83,7 @@ function M.shape(m)
   -- the size of the quadrilateral: its longer diagonal, squared
   local d13 = (x3 - x1) * (x3 - x1) + (y3 - y1) * (y3 - y1)
   local d24 = (x4 - x2) * (x4 - x2) + (y4 - y2) * (y4 - y2)
-  local size = d13 > d24 and d13 or d24
+  local size = max(d13, d24)
   local limit = M.COLLINEAR * size
   if o234 > limit and o134 > limit and o124 > limit and o123 > limit and size < huge then
     return o234, o134, o124, o123
