@@ -123,6 +123,9 @@ def main():
     print("  translation tagpose - IPPE (% distance)", percentiles(stats["tp_pct"]))
     print("  RMS reprojection tagpose / IPPE / ITERATIVE (px, median): %.4f / %.4f / %.4f" % (
         np.median(stats["e_tp"]), np.median(stats["e_ippe"]), np.median(stats["e_iter"])))
+    e_tp, e_ippe = np.array(stats["e_tp"]), np.array(stats["e_ippe"])
+    print("  rows where tagpose's RMS reprojection exceeds IPPE's: %d of %d (by at most %.2g px)" % (
+        int((e_tp > e_ippe).sum()), len(e_tp), max(0.0, float((e_tp - e_ippe).max()))))
     for name, rots in tracks.items():
         pairs = flips = 0
         for (frame, tag), R in rots.items():
