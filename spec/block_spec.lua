@@ -9,17 +9,7 @@ local sqrt, sin, cos, rad, abs = math.sqrt, math.sin, math.cos, math.rad, math.a
 local camera = { fx = 313.9, fy = 312.1, cx = 161.2, cy = 118.4, width = 320, height = 240 }
 local TAG, BLOCK = 0.024, 0.055
 
--- The faces of the lab's blocks, written out here from the convention (block frame: axes along
--- the face normals; tag z into the block; side tags upright): outward normal and the tag frame
--- R_f = [tag_x tag_y tag_z] (columns) in the block frame, flat row-major.
-local FACES = {
-  { name = "+x", n = { 1, 0, 0 }, r = { 0, 0, -1, 1, 0, 0, 0, -1, 0 } },
-  { name = "-x", n = { -1, 0, 0 }, r = { 0, 0, 1, -1, 0, 0, 0, -1, 0 } },
-  { name = "+y", n = { 0, 1, 0 }, r = { -1, 0, 0, 0, 0, -1, 0, -1, 0 } },
-  { name = "-y", n = { 0, -1, 0 }, r = { 1, 0, 0, 0, 0, 1, 0, -1, 0 } },
-  { name = "+z", n = { 0, 0, 1 }, r = { 1, 0, 0, 0, -1, 0, 0, 0, -1 } },
-  { name = "-z", n = { 0, 0, -1 }, r = { 1, 0, 0, 0, 1, 0, 0, 0, 1 } },
-}
+local FACES = require("support.faces").FACES
 
 -- the cube's 24 rotations: signed permutation matrices with determinant +1
 local SYMMETRIES = {}
