@@ -1,6 +1,7 @@
 -- Block poses from a corner log, and (given the truth) the block-level figures of PEERS.md.
 --
---   lua5.4 examples/blocks.lua DATASET_DIR [--auto | --up | --floor] [--track] [--out FILE]
+--   lua5.4 examples/blocks.lua DATASET_DIR [--auto | --auto-floor | --up | --floor] [--track]
+--     [--out FILE]
 --     [--passes N] [--peers PEERS.md]
 --
 -- DATASET_DIR holds camera.lua (with tag_size and block_size), corners.csv (a corner log:
@@ -9,11 +10,13 @@
 -- and truth_tags.csv (frame,block,face,x,y,z,qw,qx,qy,qz, one row per corner row).
 --
 -- Without truth it prints the block poses as a CSV (frame,block,x,y,z,qw,qx,qy,qz,faces,error).
--- With truth it scores tagpose.block.solve four times - with nothing but the corners, with
--- up = "auto" (up from the frame's blocks seen with two or more faces), with an up vector, with
--- an up vector and the floor - and prints the table of PEERS.md beside the baseline's rows read
--- from PEERS.md. --auto, --up and --floor score only the run with up = "auto", with up, with
--- up and the floor (without truth --auto runs with up = "auto"); --track passes each frame's
+-- With truth it scores tagpose.block.solve five times - with nothing but the corners, with
+-- up = "auto" (up from the frame's blocks seen with two or more faces), with up = "auto" and
+-- floor = "auto" (the floor from them too), with an up vector, with an up vector and the floor
+-- - and prints the table of PEERS.md beside the baseline's rows read from PEERS.md. --auto,
+-- --auto-floor, --up and --floor score only the run with up = "auto", with both "auto", with
+-- up, with up and the floor (without truth --auto and --auto-floor run with those options
+-- instead of none); --track passes each frame's
 -- blocks to the next (for sequences, frames numbered consecutively); --out writes the block
 -- poses of the (last) run; --passes sets the timing passes (median).
 --
@@ -43,7 +46,8 @@ local sqrt, floor, deg, huge = math.sqrt, math.floor, math.deg, math.huge
 
 local function usage(msg)
   io.stderr:write((msg and msg .. "\n" or "") .. "usage: lua examples/blocks.lua DATASET_DIR "
-    .. "[--auto | --up | --floor] [--track] [--out FILE] [--passes N] [--peers PEERS.md]\n")
+    .. "[--auto | --auto-floor | --up | --floor] [--track] [--out FILE] [--passes N] "
+    .. "[--peers PEERS.md]\n")
   os.exit(2)
 end
 
@@ -56,6 +60,8 @@ do
       opts.up = true
     elseif a == "--auto" then
       opts.auto = true
+    elseif a == "--auto-floor" then
+      opts.auto = "floor"
     elseif a == "--floor" then
       opts.up, opts.floor = true, true
     elseif a == "--track" then
@@ -165,6 +171,7 @@ local function run(with_up, with_floor, auto)
       local options = {}
       if with_up then options.up = f.up end
       if auto then options.up = "auto" end
+      if auto == "floor" then options.floor = "auto" end
       if with_floor then options.floor = f.floor end
       if opts.track and last_frame == f.frame - 1 then options.previous = previous end
       local blocks, err = tagpose.block.solve(f.detections, camera, tag_size, block_size, options)
@@ -408,20 +415,22 @@ local header = "| solver | blocks seen with | true | recall % | precision % | mi
   .. "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
 
 local lines = {}
-local runs = { { false, false }, { false, false, true }, { true, false }, { true, true } }
+local runs = { { false, false }, { false, false, true }, { false, false, "floor" },
+  { true, false }, { true, true } }
 if opts.floor then
   runs = { { true, true } }
 elseif opts.up then
   runs = { { true, false } }
 elseif opts.auto then
-  runs = { { false, false, true } }
+  runs = { { false, false, opts.auto } }
 end
 for _, mode in ipairs(runs) do
   local with_up, with_floor, auto = mode[1], mode[2], mode[3]
   local results, us = run(with_up, with_floor, auto)
   if opts.out then write_poses(opts.out, results) end
   local name = "tagpose.block" .. (with_floor and " (up, floor)" or with_up and " (up)"
-    or auto and " (up auto)" or "") .. (opts.track and " (track)" or "")
+    or auto == "floor" and " (up auto, floor auto)" or auto and " (up auto)" or "")
+    .. (opts.track and " (track)" or "")
   for _, l in ipairs(rows_of(name, score(results), us)) do lines[#lines + 1] = l end
 end
 for _, l in ipairs(peer_rows()) do lines[#lines + 1] = l end

@@ -310,6 +310,87 @@ describe("tagpose.block", function()
     end)
   end)
 
+  describe("options.floor = 'auto'", function()
+    -- scenes of a robot's camera: two blocks on the floor seen with two faces each and a block
+    -- seen with one (on the floor, or stacked on a hidden block); nothing tells the solver the
+    -- camera's height
+    local function scene(rng)
+      local pitch, height = rad(rng.uniform(20, 40)), rng.uniform(0.06, 0.22)
+      local cam_r, cam_c, up = robot_camera(pitch, height)
+      local all, truth = {}, {}
+      local places = { { 0.14, 0.07, 0.5 }, { 0.2, -0.08, 0.5 } }
+      for k, c in ipairs(places) do
+        local r, t, tags = view(cam_r, cam_c, { c[1], c[2], c[3] * BLOCK },
+          yaw(rad(45 + rng.uniform(-8, 8))), { rng = rng, sigma = 0.3,
+            faces = { ["-x"] = true, ["+y"] = true } })
+        for _, tag in ipairs(tags) do all[#all + 1] = tag end
+        truth[k] = { r = r, t = t }
+      end
+      local level = rng.uniform() < 0.3 and 1.5 or 0.5
+      local r, t, tags = view(cam_r, cam_c, { rng.uniform(0.3, 0.45), rng.uniform(-0.1, 0.1),
+        level * BLOCK }, yaw(rng.uniform(0, 6.3)), { rng = rng, sigma = 0.3 })
+      all[#all + 1] = tags[1]
+      truth[3] = { r = r, t = t, level = level }
+      return all, truth, up, height
+    end
+    local function nearest(blocks, t)
+      local best, bb = math.huge, nil
+      for _, b in ipairs(blocks) do
+        local p = b.position
+        local d = sqrt((p.x - t[1]) ^ 2 + (p.y - t[2]) ^ 2 + (p.z - t[3]) ^ 2)
+        if d < best then best, bb = d, b end
+      end
+      return best, bb
+    end
+
+    it("takes the floor from the blocks seen with two faces: a lone tag's depth improves",
+      function()
+        local rng = geometry.rng(61)
+        local lone_up, lone_floor, pair_up, pair_floor = {}, {}, {}, {}
+        for n = 1, 60 do
+          local all, truth, _, height = scene(rng)
+          local a = solve(all, { up = "auto" })
+          local b = solve(all, { up = "auto", floor = "auto" })
+          assert.equal(3, #b, "scene " .. n)
+          lone_up[n] = nearest(a, truth[3].t)
+          local d, lone = nearest(b, truth[3].t)
+          lone_floor[n] = d
+          assert.is_true(symmetric_error(truth[3].r, lone.rotation) < 30, "scene " .. n)
+          pair_up[n] = nearest(a, truth[1].t)
+          pair_floor[n] = nearest(b, truth[1].t)
+          -- the lone block sits at its level above the floor the others show
+          local up = b.up
+          local p = lone.position
+          assert.is_table(up, "scene " .. n)
+          assert.near(truth[3].level * BLOCK, p.x * up.x + p.y * up.y + p.z * up.z + b.floor,
+            0.003, "scene " .. n)
+          assert.near(height, b.floor, 0.003, "scene " .. n)
+        end
+        table.sort(lone_up)
+        table.sort(lone_floor)
+        table.sort(pair_up)
+        table.sort(pair_floor)
+        assert.is_true(lone_floor[30] < 0.8 * lone_up[30],
+          ("lone block, median centre error: %.3g with up auto, %.3g with the floor too")
+            :format(lone_up[30], lone_floor[30]))
+        -- each block seen with two faces gets the floor the other shows
+        assert.is_true(pair_floor[30] < pair_up[30],
+          ("two-face block, median centre error: %.3g with up auto, %.3g with the floor too")
+            :format(pair_up[30], pair_floor[30]))
+      end)
+
+    it("is no floor at all without a block seen with two faces", function()
+      local rng = geometry.rng(62)
+      for _ = 1, 20 do
+        local _, _, tags = random_block(rng, 1, 0.5)
+        local a = solve(tags, { up = "auto" })
+        local b = solve(tags, { up = "auto", floor = "auto" })
+        assert.same(a[1].position, b[1].position)
+        assert.is_nil(b.floor)
+      end
+    end)
+  end)
+
   describe("grouping", function()
     it("keeps two touching cubes two blocks", function()
       local rng = geometry.rng(51)
@@ -667,6 +748,12 @@ describe("tagpose.block", function()
         "bad argument #5 to 'solve' (options.up: non-zero vector expected (or 'auto'))" },
       { function() tagpose.block.solve(good, camera, TAG, BLOCK, { floor = 0.1 }) end,
         "bad argument #5 to 'solve' (options.floor: needs options.up (a vector))" },
+      { function() tagpose.block.solve(good, camera, TAG, BLOCK, { floor = "auto" }) end,
+        "bad argument #5 to 'solve' (options.floor: 'auto' needs options.up (a vector or "
+          .. "'auto'))" },
+      { function() tagpose.block.solve(good, camera, TAG, BLOCK, { floor = "high" }) end,
+        "bad argument #5 to 'solve' (options.floor: finite number (or 'auto') expected, got "
+          .. "string high)" },
       { function() tagpose.block.solve(good, camera, TAG, BLOCK, { faces = { [1] = "top" } }) end,
         "bad argument #5 to 'solve' (options.faces[1]: face '+x', '-x', '+y', '-y', '+z' or "
           .. "'-z' expected, got string top)" },

@@ -77,6 +77,10 @@ M.UP_TOLERANCE = rad(2)
 --- Default standard deviation of a resting block's centre height from its level above
 -- `options.floor` (× block_size).
 M.FLOOR_TOLERANCE = 0.02
+--- Default `floor_tolerance` with `floor = "auto"`, × block_size: about how well one block
+-- seen with two faces shows the floor (its centre to ~0.7 mm, mostly along the line of sight,
+-- for the lab's blocks and camera).
+M.AUTO_FLOOR_TOLERANCE = 0.01
 --- A block whose centre is further than this from every level (× block_size) is taken not to
 -- rest on the floor or on a block: the floor prior is not applied to it (its cost is capped).
 M.FLOOR_GATE = 0.3
@@ -256,6 +260,11 @@ local function read_options(options)
   for i = 1, #SCALAR_OPTIONS, 3 do
     local name, ok, what = SCALAR_OPTIONS[i], SCALAR_OPTIONS[i + 1], SCALAR_OPTIONS[i + 2]
     local v = options[name]
+    if name == "floor" and v == "auto" then
+      o.auto_floor, v = true, nil
+    elseif name == "floor" and v ~= nil then
+      what = what .. " (or 'auto')"
+    end
     if v ~= nil then
       if not ok(v) then
         return nil, "options." .. name .. ": " .. what .. " expected, got " .. describe(v)
@@ -264,6 +273,9 @@ local function read_options(options)
     end
   end
   if o.floor and not o.up then return nil, "options.floor: needs options.up (a vector)" end
+  if o.auto_floor and not (o.up or o.auto_up) then
+    return nil, "options.floor: 'auto' needs options.up (a vector or 'auto')"
+  end
   return o
 end
 
@@ -704,6 +716,34 @@ local function frame_up(found, guess)
   return { ux / norm, uy / norm, uz / norm }
 end
 
+-- floor = 'auto': the camera's height above the floor from the blocks found with two or more
+-- faces (but the `except`-th), each taken to rest at the level (0 on the floor, 1 on one block,
+-- ...) nearest its height above the lowest of them, weighted by faces; nil when there is none.
+local function frame_floor(found, up, B, except)
+  local low = huge
+  for i = 1, #found do
+    local h = found[i].h
+    if #h.members > 1 and i ~= except then
+      local height = up[1] * h.x + up[2] * h.y + up[3] * h.z
+      if height < low then low = height end
+    end
+  end
+  if low == huge then return nil end
+  local sum, weight = 0, 0
+  for i = 1, #found do
+    local h = found[i].h
+    local n = #h.members
+    if n > 1 and i ~= except then
+      local height = up[1] * h.x + up[2] * h.y + up[3] * h.z
+      local k = math.floor((height - low) / B + 0.5)
+      if abs(height - low - k * B) <= M.FLOOR_GATE * B then
+        sum, weight = sum + n * (0.5 * B + k * B - height), weight + n
+      end
+    end
+  end
+  return sum / weight
+end
+
 -- orders for table.sort (module-level: a closure made per call stops LuaJIT's compiler)
 local function first_smaller(a, b) return a[1] < b[1] end
 local function nearer(a, b)
@@ -758,8 +798,13 @@ end
 --     poorly. It helps only when known to about a millimetre: a height error moves a centre
 --     along the line of sight by the error over the sine of the ray's angle below horizontal.
 --     A block further than 0.3 block from every level is left free;
+--     `"auto"` (with `up`, a vector or `"auto"`): when the frame has blocks seen with two or
+--     more faces, the floor is where they rest (each at the level nearest its height above the
+--     lowest), used for the blocks seen with one face and, for each of those blocks, the floor
+--     the others show (this assumes that all the blocks in view rest on the floor or on each
+--     other);
 --   - `floor_tolerance`: standard deviation of a resting centre's height from its level, in
---     length units (default `block_size / 50`);
+--     length units (default `block_size / 50`; `block_size / 100` with `floor = "auto"`);
 --   - `previous`: the blocks returned for the previous frame: a block found again keeps its
 --     `id` and the symmetric frame nearest its previous rotation, and a one-face block keeps
 --     the candidate that continues a decided orientation;
@@ -774,7 +819,8 @@ end
 --   quaternion, error} or nil}`; the array's field `skipped` lists the detections not used,
 --   `{index = i, reason = string}`, `next_id` the id a new block would take, and `noise`
 --   the corner noise evidence `{sse =, dof =}` (px², degrees of freedom) carried to the next
---   frame
+--   frame, `up` (`{x =, y =, z =}`) and `floor` the up and floor used (given or found with
+--   `"auto"`; nil when none)
 -- @return nil, string when no detection gives a tag pose (the message says why)
 -- @raise `bad argument #n to 'solve' (...)` when an argument has the wrong type or range
 --   (`detections` not a table, the camera, the sizes, the options; a malformed detection
@@ -910,11 +956,33 @@ function M.solve(detections, camera, tag_size, block_size, options)
     local h, other, how
     if best then
       h, how = best, "faces"
-    elseif ctx.auto_up and not ctx.up then
-      -- up = 'auto': the blocks found with two or more faces (all of them, now) show it
-      ctx.up = frame_up(found, ctx.default_up)
-      ctx.prior_w = ctx.up and sqrt(sigma2) / ctx.up_tolerance or 0
-      ctx.auto_up = false
+    elseif ctx.auto_up or ctx.auto_floor then
+      -- up = 'auto', floor = 'auto': the blocks found with two or more faces (all of them,
+      -- now) show them
+      if ctx.auto_up then
+        ctx.up = frame_up(found, ctx.default_up)
+        ctx.prior_w = ctx.up and sqrt(sigma2) / ctx.up_tolerance or 0
+      end
+      if ctx.auto_floor and ctx.up then
+        ctx.floor_w = sqrt(sigma2)
+          / (ctx.floor_tolerance or M.AUTO_FLOOR_TOLERANCE * block_size)
+        -- each block with two or more faces is fitted again on the floor the others show
+        for i = 1, #found do
+          local g = found[i].h
+          ctx.floor = frame_floor(found, ctx.up, block_size, i)
+          if ctx.floor then
+            local r, x, y, z, sse, cost = g.r, g.x, g.y, g.z, g.sse, g.cost
+            g.start, g.r = { r = r, x = x, y = y, z = z }, nil
+            fit_hypothesis(g, dets, camera, half, half_block, ctx)
+            if not (g.cost < huge) then
+              g.r, g.x, g.y, g.z, g.sse, g.cost = r, x, y, z, sse, cost
+            end
+          end
+        end
+        -- and those with one face on the floor all of them show
+        ctx.floor = frame_floor(found, ctx.up, block_size)
+      end
+      ctx.auto_up, ctx.auto_floor = false, false
     else
       -- no two tags make a block: each free tag is one (the best-fitting first)
       local s = nil
@@ -1025,6 +1093,10 @@ function M.solve(detections, camera, tag_size, block_size, options)
   out.skipped = skipped
   out.next_id = next_id
   out.noise = { sse = noise_sse, dof = noise_dof }
+  -- the up and floor used (given, or found with "auto"), nil for none
+  local up = ctx.up
+  out.up = up and { x = up[1], y = up[2], z = up[3] } or nil
+  out.floor = ctx.floor
   return out
 end
 
