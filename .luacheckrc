@@ -1,6 +1,6 @@
 std = "min"
-include_files = { "src/**/*.lua", "spec/**/*.lua", "examples/**/*.lua", "rockspec/*.rockspec",
-  ".luacheckrc", ".busted" }
+include_files = { "src/**/*.lua", "spec/**/*.lua", "examples/**/*.lua", "bench/**/*.lua",
+  "rockspec/*.rockspec", ".luacheckrc", ".busted" }
 files["spec"] = { std = "+busted" }
 files["rockspec"] = { globals = { "rockspec_format", "package", "version", "source",
   "description", "dependencies", "test_dependencies", "build", "test", "build_dependencies" } }
