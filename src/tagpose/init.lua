@@ -30,7 +30,8 @@ local M = {
 
 --- solveQuad's threshold when it only starts the refined method (unless `options.tolerance`
 -- says otherwise): the refinement converges to the same pose from any start this close, so
--- solving the quadratics to the report's 1e-10 would be work thrown away.
+-- solving the quadratics to the report's 1e-10 would be work thrown away. (The refined method
+-- starts from `tagpose.ippe`'s poses; the report's method is its fallback start.)
 M.REFINED_TOLERANCE = 1e-7
 
 -- scratch, written in place on every solve and never handed out
