@@ -412,6 +412,25 @@ local function consistent(total, k, ctx)
   return p >= M.ALPHA
 end
 
+-- A resting block: the fit of the n members loaded in `points` and `pixels`, from the pose in
+-- fit_r and tx, ty, tz (of cost `cost`, pixel error `sum`), held at the level above
+-- options.floor nearest it. Returns the pose (in fit_r), the cost with the capped penalty of a
+-- level beyond the gate, and the pixel error; the cost is math.huge when the fit fails.
+local function rest(n, tx, ty, tz, cost, sum, camera, ctx)
+  local level, penalty = set_prior(fit_r, tx, ty, tz, ctx, true)
+  if level[12] > 0 then
+    local c
+    tx, ty, tz, c = rigid.fit(camera, points, pixels, 4 * n, fit_r, tx, ty, tz,
+      ctx.max_iterations, level)
+    if not (c < huge) then return tx, ty, tz, huge, sum end
+    cost, sum = c, 0
+    for m = 1, n do
+      sum = sum + rigid.cost(camera, points, pixels, 4 * m - 3, 4 * m, fit_r, tx, ty, tz)
+    end
+  end
+  return tx, ty, tz, cost + penalty, sum
+end
+
 -- Jointly fit a hypothesis (members, faces g, start pose); while the fit is not consistent
 -- with its members' single fits, reassign the worst member to the face that fits it best, or
 -- drop it. Fills h.r, h.x, h.y, h.z, h.sse (pixels only), h.cost.
@@ -441,22 +460,11 @@ local function fit_hypothesis(h, dets, camera, half, half_block, ctx)
     end
     if n == 1 or consistent(total, n, ctx) then
       if ctx.floor then
-        -- a resting block: its centre at the level nearest the fit's
-        local level, penalty = set_prior(fit_r, tx, ty, tz, ctx, true)
-        if level[12] > 0 then
-          local c
-          tx, ty, tz, c = rigid.fit(camera, points, pixels, 4 * n, fit_r, tx, ty, tz,
-            ctx.max_iterations, level)
-          if not (c < huge) then
-            h.cost = huge
-            return h
-          end
-          cost, sum = c, 0
-          for m = 1, n do
-            sum = sum + rigid.cost(camera, points, pixels, 4 * m - 3, 4 * m, fit_r, tx, ty, tz)
-          end
+        tx, ty, tz, cost, sum = rest(n, tx, ty, tz, cost, sum, camera, ctx)
+        if not (cost < huge) then
+          h.cost = huge
+          return h
         end
-        cost = cost + penalty
       end
       h.r = copy9(fit_r, h.r or {})
       h.x, h.y, h.z = tx, ty, tz
@@ -966,16 +974,17 @@ function M.solve(detections, camera, tag_size, block_size, options)
       if ctx.auto_floor and ctx.up then
         ctx.floor_w = sqrt(sigma2)
           / (ctx.floor_tolerance or M.AUTO_FLOOR_TOLERANCE * block_size)
-        -- each block with two or more faces is fitted again on the floor the others show
+        -- each block with two or more faces rests on the floor the others show
         for i = 1, #found do
           local g = found[i].h
           ctx.floor = frame_floor(found, ctx.up, block_size, i)
           if ctx.floor then
-            local r, x, y, z, sse, cost = g.r, g.x, g.y, g.z, g.sse, g.cost
-            g.start, g.r = { r = r, x = x, y = y, z = z }, nil
-            fit_hypothesis(g, dets, camera, half, half_block, ctx)
-            if not (g.cost < huge) then
-              g.r, g.x, g.y, g.z, g.sse, g.cost = r, x, y, z, sse, cost
+            load_members(g, dets, half, half_block)
+            copy9(g.r, fit_r)
+            local x, y, z, cost, sse = rest(#g.members, g.x, g.y, g.z, g.cost, g.sse, camera, ctx)
+            if cost < huge then
+              copy9(fit_r, g.r)
+              g.x, g.y, g.z, g.cost, g.sse = x, y, z, cost, sse
             end
           end
         end
