@@ -37,8 +37,12 @@ local function line_of_sight(mx, my)
   return 1 - px * px * w, v12, px, v12, 1 - py * py * w, py, -px, -py, pz
 end
 
--- The centre (mx, my) of the tag's image and A = B⁻¹ J, into S = {mx, my, a11, a12, a21, a22}.
-local function local_shape(S, m, l1, l2, l3, l4, half)
+-- scratch: the local shape {mx, my, a11, a12, a21, a22}, kept in a table so that few values are
+-- live where the poses branch (LuaJIT cannot compile side exits that carry many)
+local shape = {}
+
+-- The centre (mx, my) of the tag's image and A = B⁻¹ J, into `shape`.
+local function local_shape(m, l1, l2, l3, l4, half)
   local x1, y1, x2, y2, x3, y3, x4, y4 = m[1], m[2], m[3], m[4], m[5], m[6], m[7], m[8]
   -- the parallelogram's centre, up to the depths' common factor: cz C = Σ λi (xi, yi, 1)
   local cz = l1 + l2 + l3 + l4
@@ -59,13 +63,10 @@ local function local_shape(S, m, l1, l2, l3, l4, half)
   local b11, b12 = v11 - mx * v31, v12 - mx * v32
   local b21, b22 = v21 - my * v31, v22 - my * v32
   local det = b11 * b22 - b12 * b21
-  S[1], S[2] = mx, my
-  S[3], S[4] = (b22 * j11 - b12 * j21) / det, (b22 * j12 - b12 * j22) / det
-  S[5], S[6] = (b11 * j21 - b21 * j11) / det, (b11 * j22 - b21 * j12) / det
+  shape[1], shape[2] = mx, my
+  shape[3], shape[4] = (b22 * j11 - b12 * j21) / det, (b22 * j12 - b12 * j22) / det
+  shape[5], shape[6] = (b11 * j21 - b21 * j11) / det, (b11 * j22 - b21 * j12) / det
 end
-
-local S = {} -- scratch: the local shape, kept in a table so that few values are live where the
--- poses branch (LuaJIT cannot compile side exits that carry many)
 
 -- The rotation Rv S into r, S's columns (g11, g21, s1) and (g12, g22, s2), the third their
 -- cross product.
@@ -97,8 +98,8 @@ end
 -- @return nil, string when the local shape is degenerate
 function M.poses(m, l1, l2, l3, l4, half, ra, rb)
   if not (l1 + l2 + l3 + l4 > 0) then return nil, "ippe: degenerate corners" end
-  local_shape(S, m, l1, l2, l3, l4, half)
-  local a11, a12, a21, a22 = S[3], S[4], S[5], S[6]
+  local_shape(m, l1, l2, l3, l4, half)
+  local a11, a12, a21, a22 = shape[3], shape[4], shape[5], shape[6]
   -- A = e·[[1, 0], [0, 1]] + h·[[0, -1], [1, 0]] + f·[[1, 0], [0, -1]] + g·[[0, 1], [1, 0]]: a
   -- scaled rotation (norm Q) plus a scaled reflection (norm R), so σmax = Q + R = 1 / z0 and
   -- AᵀA = (Q² + R²) I + 2QR·(the reflection about the angle α/2), α = angle(f, g) - angle(e, h)
@@ -116,8 +117,8 @@ function M.poses(m, l1, l2, l3, l4, half, ra, rb)
   -- (w = 0 only where qr = 0: then s = 0)
   local k = 2 * sqrt(qr) / (sigma * max(sqrt(w1 * w1 + w2 * w2), 1e-300))
   local z0 = 1 / sigma
-  local mx, my = S[1], S[2]
-  local g11, g12, g21, g22 = z0 * S[3], z0 * S[4], z0 * S[5], z0 * S[6]
+  local mx, my = shape[1], shape[2]
+  local g11, g12, g21, g22 = z0 * a11, z0 * a12, z0 * a21, z0 * a22
   fill(ra, mx, my, g11, g12, g21, g22, k * w1, k * w2)
   fill(rb, mx, my, g11, g12, g21, g22, -k * w1, -k * w2)
   return z0 * mx, z0 * my, z0
