@@ -725,11 +725,7 @@ describe("tagpose.block", function()
   describe("misuse", function()
     local good = { { id = 0, corners = { { 100, 100 }, { 120, 100 }, { 120, 80 }, { 100, 80 } } } }
     local function raised(f)
-      local ok, err = pcall(f)
-      assert.is_false(ok)
-      local where, message = tostring(err):match("^(.-block_spec%.lua:%d+): (.*)$")
-      assert.is_string(where, "error does not point at the caller: " .. tostring(err))
-      return message
+      return assertions.raised(f, "block_spec.lua")
     end
     local cases = {
       { function() tagpose.block.solve(nil, camera, TAG, BLOCK) end,

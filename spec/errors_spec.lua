@@ -1,4 +1,5 @@
 local tagpose = require("tagpose")
+local assertions = require("support.assertions")
 
 local camera = { fx = 883.98, fy = 883.98, cx = 319.5, cy = 239.5 }
 local good = { { 280, 280 }, { 360, 280 }, { 360, 200 }, { 280, 200 } }
@@ -6,11 +7,7 @@ local nan, inf = 0 / 0, math.huge
 
 -- the error raised by f, which must point at this file (the caller's line)
 local function raised(f)
-  local ok, err = pcall(f)
-  assert.is_false(ok)
-  local where, message = tostring(err):match("^(.-errors_spec%.lua:%d+): (.*)$")
-  assert.is_string(where, "error does not point at the caller: " .. tostring(err))
-  return message
+  return assertions.raised(f, "errors_spec.lua")
 end
 
 local function corners_with(i, u, v)

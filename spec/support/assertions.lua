@@ -80,4 +80,14 @@ for name, fn in pairs({ vector_near = vector_near, rotation_near = rotation_near
     "assertion." .. name .. ".negative")
 end
 
-return { rotation_angle = rotation_angle, flat = flat }
+-- The message of the error f raises, which must point at the spec file `name` (the caller's
+-- line, as misuse errors do).
+local function raised(f, name)
+  local ok, err = pcall(f)
+  assert.is_false(ok)
+  local where, message = tostring(err):match("^(.-" .. name:gsub("%p", "%%%0") .. ":%d+): (.*)$")
+  assert.is_string(where, "error does not point at the caller: " .. tostring(err))
+  return message
+end
+
+return { rotation_angle = rotation_angle, flat = flat, raised = raised }
