@@ -105,13 +105,17 @@ end
 
 -- frames in order of first appearance, each with its detections and corner rows
 local frames, by_frame = {}, {}
-for i, row in ipairs(rows) do
-  local f = by_frame[row.frame]
+local function frame_of(id)
+  local f = by_frame[id]
   if not f then
-    f = { frame = row.frame, detections = {}, rows = {} }
-    by_frame[row.frame] = f
+    f = { frame = id, detections = {}, rows = {} }
+    by_frame[id] = f
     frames[#frames + 1] = f
   end
+  return f
+end
+for i, row in ipairs(rows) do
+  local f = frame_of(row.frame)
   f.detections[#f.detections + 1] = { id = row.tag, corners = row.corners }
   f.rows[#f.rows + 1] = i
 end
@@ -120,13 +124,7 @@ local truth
 if exists(dir .. "/truth.csv") then
   truth = {}
   for _, t in ipairs(assert(log.read_csv(dir .. "/truth.csv"))) do
-    local f = by_frame[t.frame]
-    if not f then
-      -- a frame whose blocks show no tag
-      f = { frame = t.frame, detections = {}, rows = {} }
-      by_frame[t.frame] = f
-      frames[#frames + 1] = f
-    end
+    local f = frame_of(t.frame) -- (new for a frame whose blocks show no tag)
     f.truth = f.truth or {}
     f.truth[#f.truth + 1] = { x = t.x, y = t.y, z = t.z, faces = t.faces_visible or 0,
       r = rotation.from_quaternion(t.qw, t.qx, t.qy, t.qz) }
