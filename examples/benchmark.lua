@@ -76,6 +76,9 @@ local median = times[math.floor((#times + 1) / 2)]
 -- bytes per solve with the collector stopped
 local function bytes(opts)
   collectgarbage("collect")
+  -- (Lua 5.1's full collection shrinks the VM's own buffers; the first solve after it grows
+  -- them back, once, which is not the solve's allocation)
+  tagpose.solve(corners[1], camera, tag_size, opts)
   collectgarbage("stop")
   local before = collectgarbage("count")
   for i = 1, n do
