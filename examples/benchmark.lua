@@ -12,6 +12,7 @@
 package.path = "./src/?.lua;./src/?/init.lua;" .. package.path
 local tagpose = require("tagpose")
 local log = require("tagpose.log")
+local solvequad = require("tagpose.solvequad")
 
 local args = { dir = nil, method = nil, passes = 15 }
 do
@@ -96,12 +97,14 @@ for _ = 1, 10 do bytes(into_options) end
 local reused = bytes(into_options)
 
 -- iteration counts
-local sq, rf, sq_max, rf_max, failed = 0, 0, 0, 0, 0
+local sq, rf, sq_max, rf_max, failed, safeguard = 0, 0, 0, 0, 0, 0
 for i = 1, n do
   local pose = tagpose.solve(corners[i], camera, tag_size, options)
   if pose then
     sq = sq + pose.iterations
     if pose.iterations > sq_max then sq_max = pose.iterations end
+    -- the report's update did not converge within its steps: the safeguard found the root
+    if pose.iterations >= solvequad.REPORT_STEPS then safeguard = safeguard + 1 end
     local k = pose.refine_iterations or 0
     rf = rf + k
     if k > rf_max then rf_max = k end
@@ -113,6 +116,7 @@ local ok = n - failed
 
 local vm = rawget(_G, "jit") and rawget(_G, "jit").version or _VERSION
 print(("%s | %s | method %s | %d rows | %.2f µs/pose | %.0f B/pose | %.0f B/pose with into"
-  .. " | solveQuad mean %.2f max %d | refine mean %.2f max %d | %d failed"):format(
+  .. " | solveQuad mean %.2f max %d, safeguard on %d rows | refine mean %.2f max %d"
+  .. " | %d failed"):format(
   vm, name, args.method or "refined", n, median / n * 1e6, fresh, reused,
-  sq / ok, sq_max, rf / math.max(ok, 1), rf_max, failed))
+  sq / ok, sq_max, safeguard, rf / math.max(ok, 1), rf_max, failed))
