@@ -1,5 +1,5 @@
 std = "min"
-include_files = { "src/**/*.lua", "spec/**/*.lua", "examples/**/*.lua", "bench/**/*.lua",
+include_files = { "src/**/*.lua", "spec/**/*.lua", "examples/**/*.lua", "bench/**/*.lua", "bin/*",
   "rockspec/*.rockspec", ".luacheckrc", ".busted" }
 files["spec"] = { std = "+busted" }
 files["rockspec"] = { globals = { "rockspec_format", "package", "version", "source",

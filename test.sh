@@ -76,10 +76,13 @@ for rockspec in rockspec/*.rockspec; do
   if luarocks lint "$rockspec"; then pass 1; else fail 1; fi
 done
 
-echo "== rockspec installs into a fresh tree and is what require loads"
+echo "== the rocks install into a fresh tree: the library loads, the replay command runs"
 tree=$(mktemp -d)
-if luarocks --tree "$tree" make rockspec/tagpose-scm-1.rockspec >"$tree/make.log" 2>&1; then
+if luarocks --tree "$tree" make rockspec/tagpose-scm-1.rockspec >"$tree/make.log" 2>&1 \
+    && luarocks --tree "$tree" make rockspec/tagpose-tools-scm-1.rockspec >>"$tree/make.log" 2>&1
+then
   lv=$(luarocks config lua_version 2>/dev/null || echo 5.1)
+  data=$(pwd)/examples/data
   if (cd "$tree" && "lua$lv" -e "
       package.path = '$tree/share/lua/$lv/?.lua;$tree/share/lua/$lv/?/init.lua'
       local tagpose = require('tagpose')
@@ -88,7 +91,7 @@ if luarocks --tree "$tree" make rockspec/tagpose-scm-1.rockspec >"$tree/make.log
       local pose = assert(tagpose.solve({{280, 280}, {360, 280}, {360, 200}, {280, 200}},
         {fx = 883.98, fy = 883.98, cx = 319.5, cy = 239.5}, 0.024))
       print('installed copy loads from ' .. src:sub(2) .. ', z = ' .. pose.position.z)
-    "); then
+    ") && (cd "$tree" && "$tree/bin/tagpose-replay" "$data/approach.csv" | tail -n 1); then
     pass 1
   else
     fail 1

@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Side-by-side check of tagpose against OpenCV's solvePnP on a corner log.
 
-    lua5.4 examples/replay.lua DATASET/corners.csv --track --out POSES.csv
+    lua5.4 bin/tagpose-replay DATASET/corners.csv --track --out POSES.csv
     /usr/bin/python3 bench/compare_opencv.py DATASET POSES.csv
 
 DATASET holds corners.csv and camera.lua (the format of ../shared/bench/dev and

@@ -9,7 +9,7 @@
 
 package.path = "./src/?.lua;./src/?/init.lua;" .. package.path
 local tagpose = require("tagpose")
-local log = require("tagpose.log")
+local log = require("tagpose.tools.log")
 local rotation = require("tagpose.rotation")
 
 local sqrt, abs, floor, deg = math.sqrt, math.abs, math.floor, math.deg

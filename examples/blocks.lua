@@ -38,7 +38,7 @@
 
 package.path = "./src/?.lua;./src/?/init.lua;" .. package.path
 local tagpose = require("tagpose")
-local log = require("tagpose.log")
+local log = require("tagpose.tools.log")
 local rotation = require("tagpose.rotation")
 local cube = require("tagpose.cube")
 

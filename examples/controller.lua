@@ -148,7 +148,7 @@ end
 
 -- Standalone: play a corner log through the controller, frame by frame.
 local function main(argv)
-  local log = require("tagpose.log")
+  local log = require("tagpose.tools.log")
   local path, camera_path, every = nil, nil, 20
   local i = 1
   while i <= #argv do

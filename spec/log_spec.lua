@@ -1,4 +1,4 @@
-local log = require("tagpose.log")
+local log = require("tagpose.tools.log")
 
 local function tmpfile(text)
   local path = os.tmpname()
@@ -8,7 +8,7 @@ local function tmpfile(text)
   return path
 end
 
-describe("tagpose.log", function()
+describe("tagpose.tools.log", function()
   describe("read_corners()", function()
     it("reads rows in file order, ignoring extra columns, comments and blank lines", function()
       local path = tmpfile(table.concat({

@@ -1,4 +1,4 @@
-local plot = require("tagpose.plot")
+local plot = require("tagpose.tools.plot")
 local geometry = require("support.geometry")
 local run = require("support.run")
 
@@ -62,7 +62,7 @@ local function quaternion(r)
   return (r[4] - r[2]) / s, (r[3] + r[7]) / s, (r[6] + r[8]) / s, s / 4
 end
 
-describe("tagpose.plot", function()
+describe("tagpose.tools.plot", function()
   describe("ticks()", function()
     it("puts ticks at 1, 2 or 5 times a power of ten inside the range", function()
       local ticks, step, decimals = plot.ticks(0, 0.7)

@@ -1,5 +1,5 @@
--- examples/replay.lua end to end, run with the Lua that runs the specs; and the bundled data.
-local log = require("tagpose.log")
+-- bin/tagpose-replay end to end, run with the Lua that runs the specs; and the bundled data.
+local log = require("tagpose.tools.log")
 local run = require("support.run")
 
 local sqrt = math.sqrt
@@ -43,10 +43,10 @@ local function differences(a, b)
   return dt, dr
 end
 
-describe("examples/replay.lua", function()
+describe("bin/tagpose-replay", function()
   it("replays the bundled approach: a pose per row, in order, near the truth", function()
     local out, svg = tmp("poses.csv"), tmp("plot.svg")
-    local text, status = run.script("examples/replay.lua", LOG, "--track", "--out", out,
+    local text, status = run.script("bin/tagpose-replay", LOG, "--track", "--out", out,
       "--svg", svg, "--compare", TRUTH)
     local rows = assert(log.read_corners(LOG))
     local poses, problems = log.read_poses(out)
@@ -86,7 +86,7 @@ describe("examples/replay.lua", function()
     -- the 95th percentile of the rotation error, and the summary
     local function p95(...)
       local out = tmp("poses.csv")
-      local text, status = run.script("examples/replay.lua", LOG, "--out", out, ...)
+      local text, status = run.script("bin/tagpose-replay", LOG, "--out", out, ...)
       local poses = assert(log.read_poses(out))
       os.remove(out)
       assert.equal(0, status, text)
@@ -114,7 +114,7 @@ describe("examples/replay.lua", function()
     assert.equal(0, select(2, run.run("mkdir " .. run.quote(dir))))
     local corners = run.write(dir .. "/corners.csv", MIXED)
     run.write(dir .. "/camera.lua", CAMERA)
-    local text, status = run.script("examples/replay.lua", corners, "--out", "-")
+    local text, status = run.script("bin/tagpose-replay", corners, "--out", "-")
     run.run("rm -r " .. run.quote(dir))
     assert.equal(0, status, text)
     -- the pose log (on stdout): the four readable rows, in order
@@ -145,10 +145,10 @@ describe("examples/replay.lua", function()
 
   it("takes the tag size from --tag-size over the camera file's", function()
     local out = tmp("poses.csv")
-    local _, status = run.script("examples/replay.lua", LOG, "--tag-size", "0.048", "--out",
+    local _, status = run.script("bin/tagpose-replay", LOG, "--tag-size", "0.048", "--out",
       out, "--method", "seed")
     local big = assert(log.read_poses(out))
-    run.script("examples/replay.lua", LOG, "--camera", "examples/data/camera.lua", "--out", out,
+    run.script("bin/tagpose-replay", LOG, "--camera", "examples/data/camera.lua", "--out", out,
       "--method", "seed")
     local small = assert(log.read_poses(out))
     os.remove(out)
@@ -158,7 +158,7 @@ describe("examples/replay.lua", function()
 
   it("draws roll, pitch and yaw with --rpy", function()
     local svg = tmp("plot.svg")
-    local text, status = run.script("examples/replay.lua", LOG, "--svg", svg, "--rpy")
+    local text, status = run.script("bin/tagpose-replay", LOG, "--svg", svg, "--rpy")
     local figure = run.read(svg)
     os.remove(svg)
     assert.equal(0, status, text)
@@ -169,20 +169,20 @@ describe("examples/replay.lua", function()
   end)
 
   it("refuses bad command lines and unreadable files with a message", function()
-    local text, status = run.script("examples/replay.lua")
+    local text, status = run.script("bin/tagpose-replay")
     assert.equal(2, status)
     assert.truthy(text:find("^usage: "), text)
-    text, status = run.script("examples/replay.lua", LOG, "--bogus")
+    text, status = run.script("bin/tagpose-replay", LOG, "--bogus")
     assert.equal(2, status)
     assert.truthy(text:find("replay: unknown option --bogus", 1, true), text)
-    text, status = run.script("examples/replay.lua", "/nonexistent/corners.csv")
+    text, status = run.script("bin/tagpose-replay", "/nonexistent/corners.csv")
     assert.equal(2, status)
     assert.truthy(text:find("no camera file", 1, true), text)
-    text, status = run.script("examples/replay.lua", "/nonexistent/corners.csv", "--camera",
+    text, status = run.script("bin/tagpose-replay", "/nonexistent/corners.csv", "--camera",
       "examples/data/camera.lua")
     assert.equal(1, status)
     assert.truthy(text:find("replay: log: /nonexistent/corners.csv", 1, true), text)
-    text, status = run.script("examples/replay.lua", LOG, "--compare", "/nonexistent/truth.csv")
+    text, status = run.script("bin/tagpose-replay", LOG, "--compare", "/nonexistent/truth.csv")
     assert.equal(1, status)
     assert.truthy(text:find("/nonexistent/truth.csv", 1, true), text)
   end)

@@ -1,4 +1,5 @@
--- The rockspecs' module maps are kept in step with src/.
+-- The rockspecs' module maps are kept in step with src/: the library rock carries every module
+-- but the tools, the tools rock carries src/tagpose/tools/ and the replay command.
 local lfs = require("lfs")
 
 local compat = require("tagpose.compat")
@@ -12,38 +13,51 @@ local function load_rockspec(path)
   return env
 end
 
-local function source_modules(dir, prefix, out)
+-- module name -> path of every .lua file under dir, split by whether it is a tool
+local function source_modules(dir, prefix, library, tools)
   for name in lfs.dir(dir) do
     local path = dir .. "/" .. name
     if name ~= "." and name ~= ".." then
       if lfs.attributes(path, "mode") == "directory" then
-        source_modules(path, prefix .. name .. ".", out)
+        source_modules(path, prefix .. name .. ".", library, tools)
       elseif name:match("%.lua$") then
-        local module = prefix .. name:gsub("%.lua$", "")
-        out[(module:gsub("%.init$", ""))] = path:gsub("^%./", "")
+        local module = (prefix .. name:gsub("%.lua$", "")):gsub("%.init$", "")
+        local into = module:match("^tagpose%.tools%.") and tools or library
+        into[module] = path:gsub("^%./", "")
       end
     end
   end
-  return out
 end
 
+local library, tools = {}, {}
+source_modules("src", "", library, tools)
+
 describe("rockspec", function()
-  local rockspecs = {}
   for name in lfs.dir("rockspec") do
-    if name:match("%.rockspec$") then rockspecs[#rockspecs + 1] = "rockspec/" .. name end
+    local path = "rockspec/" .. name
+    if name:match("^tagpose%-tools%-.*%.rockspec$") then
+      it(path .. " lists exactly the tools and installs the replay command", function()
+        local spec = load_rockspec(path)
+        assert.equal("3.0", spec.rockspec_format)
+        assert.equal("tagpose-tools", spec.package)
+        assert.same({ "lua >= 5.1", "tagpose" }, spec.dependencies)
+        assert.same(tools, spec.build.modules)
+        assert.same({ ["tagpose-replay"] = "bin/tagpose-replay" }, spec.build.install.bin)
+      end)
+    elseif name:match("%.rockspec$") then
+      it(path .. " lists exactly the library's modules, no tools", function()
+        local spec = load_rockspec(path)
+        assert.equal("3.0", spec.rockspec_format)
+        assert.equal("tagpose", spec.package)
+        assert.equal("builtin", spec.build.type)
+        assert.same({ "lua >= 5.1" }, spec.dependencies)
+        assert.same(library, spec.build.modules)
+      end)
+    end
   end
 
-  it("exists for scm", function()
+  it("exists for scm, for the library and the tools", function()
     assert.is_truthy(io.open("rockspec/tagpose-scm-1.rockspec"))
+    assert.is_truthy(io.open("rockspec/tagpose-tools-scm-1.rockspec"))
   end)
-
-  for _, path in ipairs(rockspecs) do
-    it(path .. " lists exactly the modules in src/", function()
-      local spec = load_rockspec(path)
-      assert.equal("3.0", spec.rockspec_format)
-      assert.equal("builtin", spec.build.type)
-      assert.same({ "lua >= 5.1" }, spec.dependencies)
-      assert.same(source_modules("src", "", {}), spec.build.modules)
-    end)
-  end
 end)

@@ -8,7 +8,7 @@
 -- Blank lines and lines starting with `#` are skipped. A malformed line is never dropped
 -- silently: readers return it in a list of problems with its line number and the reason.
 -- This module does file I/O, so it is for tools and replay, not for the solve path.
--- @module tagpose.log
+-- @module tagpose.tools.log
 
 local compat = require("tagpose.compat")
 

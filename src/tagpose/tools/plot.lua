@@ -18,7 +18,7 @@
 --
 -- Lengths are in the unit of the tag size; the unit's name for the axis titles is an option
 -- (`"m"` by default). SVG coordinates are in CSS pixels.
--- @module tagpose.plot
+-- @module tagpose.tools.plot
 
 local compat = require("tagpose.compat")
 local args = require("tagpose.args")
@@ -487,7 +487,7 @@ end
 
 --- The SVG figure of pose logs: position and rotation over frames, one line per tag id.
 -- @tparam {table,...} sources the logs to draw, each `{label = string, entries = {...}}` with
---   entries `{frame =, tag =, pose =}` as `tagpose.log.read_poses` returns them (or as a
+--   entries `{frame =, tag =, pose =}` as `tagpose.tools.log.read_poses` returns them (or as a
 --   replay builds them from `tagpose.solve`'s results; a `nil` pose is a gap). The first source
 --   is drawn solid, the others dashed (`DASHES`); a source's `dash` field overrides its style.
 -- @tparam[opt] table options

@@ -1,0 +1,39 @@
+rockspec_format = "3.0"
+package = "tagpose-tools"
+version = "scm-1"
+source = {
+  url = "git+https://github.com/tagpose/tagpose.git",
+}
+description = {
+  summary = "Workstation tools for tagpose: corner and pose logs, SVG plots, tagpose-replay",
+  detailed = [[
+    The tools around the tagpose library that a robot does not need: reading and writing
+    corner logs and pose logs, drawing poses over frames as SVG, and the tagpose-replay command
+    that replays a recorded corner log. The robot installs the tagpose rock alone.
+  ]],
+  license = "MIT",
+  labels = { "apriltag", "pose", "robotics", "vision" },
+}
+dependencies = {
+  "lua >= 5.1",
+  "tagpose",
+}
+test_dependencies = {
+  "busted",
+}
+build = {
+  type = "builtin",
+  modules = {
+    ["tagpose.tools.log"] = "src/tagpose/tools/log.lua",
+    ["tagpose.tools.plot"] = "src/tagpose/tools/plot.lua",
+    ["tagpose.tools.replay"] = "src/tagpose/tools/replay.lua",
+  },
+  install = {
+    bin = {
+      ["tagpose-replay"] = "bin/tagpose-replay",
+    },
+  },
+}
+test = {
+  type = "busted",
+}
