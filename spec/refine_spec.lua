@@ -1,4 +1,5 @@
 local refine = require("tagpose.refine")
+local lsq = require("tagpose.lsq")
 local rotation = require("tagpose.rotation")
 local tagpose = require("tagpose")
 local geometry = require("support.geometry")
@@ -17,6 +18,14 @@ local function noisy(rng, px, sigma)
   local out = {}
   for i = 1, 4 do out[i] = { px[i][1] + sigma * rng.normal(), px[i][2] + sigma * rng.normal() } end
   return out
+end
+
+-- refine.refine on a candidate record: the refined translation, cost and linearisations (the
+-- rotation r, the start, is replaced by the result)
+local function refined(px, half, r, tx, ty, tz, max_iterations)
+  local cand = { r = r, tx = tx, ty = ty, tz = tz }
+  refine.refine(lsq.pack(camera), px, half, cand, max_iterations)
+  return cand.tx, cand.ty, cand.tz, cand.sse, cand.linearisations
 end
 
 local function copy(r)
@@ -43,7 +52,7 @@ describe("tagpose.refine", function()
         local r, t = geometry.random_pose(rng, camera, s)
         local px = geometry.project(camera, r, t, s)
         local est = copy(r)
-        local tx, ty, tz, cost, k = refine.refine(camera, flat_pixels(px), s / 2, est,
+        local tx, ty, tz, cost, k = refined(flat_pixels(px), s / 2, est,
           t[1], t[2], t[3])
         assert.rotation_near(r, est, 1e-9)
         assert.vector_near(t, { tx, ty, tz }, 1e-12 * t[3])
@@ -63,7 +72,7 @@ describe("tagpose.refine", function()
         local start = geometry.mul(geometry.axis_angle(rng.normal(), rng.normal(), rng.normal(),
           rad(5)), r)
         local d = sqrt(t[1] ^ 2 + t[2] ^ 2 + t[3] ^ 2)
-        local tx, ty, tz = refine.refine(camera, flat_pixels(px), s / 2, start,
+        local tx, ty, tz = refined(flat_pixels(px), s / 2, start,
           t[1] + 0.05 * d * rng.normal() / sqrt(3), t[2] + 0.05 * d * rng.normal() / sqrt(3),
           t[3] + 0.05 * d * rng.normal() / sqrt(3))
         assert.rotation_near(r, start, 1e-6, "case " .. n)
@@ -77,7 +86,7 @@ describe("tagpose.refine", function()
         local r, t = geometry.random_pose(rng, camera, s, { max_tilt = rad(60), width = 80 })
         local px = noisy(rng, geometry.project(camera, r, t, s), 1.0)
         local est = copy(r)
-        local tx, ty, tz, cost = refine.refine(camera, flat_pixels(px), s / 2, est,
+        local tx, ty, tz, cost = refined(flat_pixels(px), s / 2, est,
           t[1], t[2], t[3])
         local best = { tx, ty, tz }
         assert.near(sse(est, best, s, px), cost, 1e-9 * cost)
@@ -115,7 +124,7 @@ describe("tagpose.refine", function()
               local cost = 4 * p.error ^ 2
               local est = rotation.from_nested(p.rotation, {})
               refine.STEP_RELATIVE, refine.MAX_ITERATIONS = 1e-12, 200
-              local _, _, _, best = refine.refine(camera, flat_pixels(px), s / 2, est,
+              local _, _, _, best = refined(flat_pixels(px), s / 2, est,
                 p.position.x, p.position.y, p.position.z)
               refine.STEP_RELATIVE, refine.MAX_ITERATIONS = relative, bound
               assert.is_true(best <= cost + 1e-12, "case " .. n)
@@ -132,7 +141,7 @@ describe("tagpose.refine", function()
       local s = 0.05
       local r, t = geometry.random_pose(rng, camera, s)
       local px = noisy(rng, geometry.project(camera, r, t, s), 3)
-      local _, _, _, _, k = refine.refine(camera, flat_pixels(px), s / 2, copy(r), t[1], t[2],
+      local _, _, _, _, k = refined(flat_pixels(px), s / 2, copy(r), t[1], t[2],
         t[3], 2)
       assert.is_true(k <= 2)
     end)
@@ -144,11 +153,11 @@ describe("tagpose.refine", function()
         local s = 0.05
         local r, t = geometry.random_pose(rng, camera, s, { max_tilt = rad(80) })
         local px = flat_pixels(noisy(rng, geometry.project(camera, r, t, s), 2))
-        local C = { camera.fx, camera.fy, camera.cx, camera.cy, s / 2, 0, 0, 0, 0, 0, 0, 0, 0, 0 }
+        local C = lsq.pack(camera)
         local Q = { r[1], r[4], r[7], r[2], r[5], r[8], t[1], t[2], t[3] }
         local A, B = {}, {}
-        local sa = refine.linearise_unrolled(A, px, C, Q)
-        local sb = refine.linearise_looped(B, px, C, Q)
+        local sa = refine.linearise_unrolled(A, px, C, s / 2, Q)
+        local sb = refine.linearise_looped(B, px, C, s / 2, Q)
         assert.near(sa, sb, 1e-12 * sa)
         for k = 1, 27 do
           assert.near(A[k], B[k], 1e-9 * (math.abs(A[k]) + 1), "entry " .. k)

@@ -1,4 +1,5 @@
 local rigid = require("tagpose.rigid")
+local lsq = require("tagpose.lsq")
 local geometry = require("support.geometry")
 
 local sqrt, rad = math.sqrt, math.rad
@@ -60,10 +61,11 @@ describe("tagpose.rigid", function()
           local r, t = random_pose(rng)
           local px = project(cam, r, t, 0.05)
           local start, s = perturbed(rng, r, t, rad(15), 0.02)
-          local tx, ty, tz, cost = rigid.fit(cam, scaled(0.05), px, N, start, s[1], s[2], s[3])
+          local body = rigid.fit(lsq.pack(cam), scaled(0.05), px, N,
+            { r = start, tx = s[1], ty = s[2], tz = s[3] })
           assert.rotation_near(r, start, 1e-8)
-          assert.vector_near(t, { tx, ty, tz }, 1e-10)
-          assert.is_true(cost < 1e-16)
+          assert.vector_near(t, { body.tx, body.ty, body.tz }, 1e-10)
+          assert.is_true(body.cost < 1e-16)
         end
       end)
     end
@@ -75,11 +77,13 @@ describe("tagpose.rigid", function()
         local px = project(camera, r, t, 0.05)
         for i = 1, #px do px[i] = px[i] + 0.5 * rng.normal() end
         local est = { r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8], r[9] }
-        local tx, ty, tz, cost = rigid.fit(camera, scaled(0.05), px, N, est, t[1], t[2], t[3])
-        assert.near(cost, rigid.cost(camera, scaled(0.05), px, 1, N, est, tx, ty, tz), 1e-9)
+        local C = lsq.pack(camera)
+        local body = rigid.fit(C, scaled(0.05), px, N, { r = est, tx = t[1], ty = t[2], tz = t[3] })
+        local tx, ty, tz, cost = body.tx, body.ty, body.tz, body.cost
+        assert.near(cost, rigid.cost(C, scaled(0.05), px, 1, N, est, tx, ty, tz), 1e-9)
         for _ = 1, 20 do
           local p, s = perturbed(rng, est, { tx, ty, tz }, rad(0.05), 1e-5)
-          assert.is_true(rigid.cost(camera, scaled(0.05), px, 1, N, p, s[1], s[2], s[3])
+          assert.is_true(rigid.cost(C, scaled(0.05), px, 1, N, p, s[1], s[2], s[3])
             >= cost - 1e-9)
         end
       end
@@ -94,8 +98,11 @@ describe("tagpose.rigid", function()
       local up = geometry.mul(geometry.axis_angle(1, 0, 0, rad(1)), r)
       local u = { up[3], up[6], up[9] }
       local est = { r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8], r[9] }
-      rigid.fit(camera, scaled(0.05), px, N, est, t[1], t[2], t[3], nil,
-        { 0, 0, 1, u[1], u[2], u[3], 1e6 })
+      local prior = rigid.prior()
+      prior.axis_z, prior.up_x, prior.up_y, prior.up_z, prior.axis_weight = 1, u[1], u[2], u[3],
+        1e6
+      rigid.fit(lsq.pack(camera), scaled(0.05), px, N, { r = est, tx = t[1], ty = t[2], tz = t[3] },
+        nil, prior)
       local z = { est[3], est[6], est[9] }
       local c = z[1] * u[1] + z[2] * u[2] + z[3] * u[3]
       assert.is_true(sqrt(1 - c * c) < 1e-5)
@@ -104,8 +111,9 @@ describe("tagpose.rigid", function()
     it("reports a start with a point behind the camera", function()
       local r = { 1, 0, 0, 0, 1, 0, 0, 0, 1 }
       local px = project(camera, r, { 0, 0, 1 }, 0.05)
-      local _, _, _, cost = rigid.fit(camera, scaled(0.05), px, N, r, 0, 0, -1)
-      assert.equal(math.huge, cost)
+      local body = rigid.fit(lsq.pack(camera), scaled(0.05), px, N,
+        { r = r, tx = 0, ty = 0, tz = -1 })
+      assert.equal(math.huge, body.cost)
     end)
   end)
 end)

@@ -75,28 +75,27 @@ describe("tagpose.rotation", function()
     end)
   end)
 
-  describe("to_axis_angle() and from_axis_angle()", function()
-    it("gives the axis and angle of single-axis rotations", function()
-      local ax, ay, az, a = rotation.to_axis_angle(ry(0.8))
-      assert.vector_near({ 0, 1, 0 }, { ax, ay, az }, 1e-15)
-      assert.near(0.8, a, 1e-15)
-      ax, ay, az, a = rotation.to_axis_angle(rx(-0.8))
-      assert.vector_near({ -1, 0, 0 }, { ax, ay, az }, 1e-15)
-      assert.near(0.8, a, 1e-15)
+  describe("to_rotation_vector()", function()
+    it("gives axis times angle of single-axis rotations", function()
+      assert.vector_near({ 0, 0.8, 0 }, { rotation.to_rotation_vector(ry(0.8)) }, 1e-15)
+      assert.vector_near({ -0.8, 0, 0 }, { rotation.to_rotation_vector(rx(-0.8)) }, 1e-15)
+      assert.same({ 0, 0, 0 }, { rotation.to_rotation_vector({ 1, 0, 0, 0, 1, 0, 0, 0, 1 }) })
     end)
 
-    it("round-trips, including the half turn and the identity", function()
-      for _, case in ipairs({ { 1, 2, 3, 0.5 }, { -1, 0, 1, pi }, { 0, 0, 1, 1e-12 } }) do
-        local r = rotation.from_axis_angle(case[1], case[2], case[3], case[4])
-        local ax, ay, az, a = rotation.to_axis_angle(r)
+    it("inverts from_rotation_vector(), including the half turn and tiny angles", function()
+      for _, case in ipairs({ { 1, 2, 3, 0.5 }, { -1, 0, 1, pi }, { 0, 0, 1, 1e-12 },
+        { 0.3, -0.7, 0.1, 3 } }) do
         local n = sqrt(case[1] ^ 2 + case[2] ^ 2 + case[3] ^ 2)
+        local k = case[4] / n
+        local r = geometry.axis_angle(case[1], case[2], case[3], case[4])
+        local wx, wy, wz = rotation.to_rotation_vector(r)
+        local a = sqrt(wx * wx + wy * wy + wz * wz)
         assert.near(case[4], a, 1e-14)
-        local sign = (ax * case[1] + ay * case[2] + az * case[3]) >= 0 and 1 or -1
-        assert.vector_near({ sign * case[1] / n, sign * case[2] / n, sign * case[3] / n },
-          { ax, ay, az }, 1e-7)
+        local sign = (wx * case[1] + wy * case[2] + wz * case[3]) >= 0 and 1 or -1
+        assert.vector_near({ sign * k * case[1], sign * k * case[2], sign * k * case[3] },
+          { wx, wy, wz }, 1e-7 * case[4] + 1e-20)
+        assert.rotation_near(r, rotation.from_rotation_vector(wx, wy, wz), 1e-12)
       end
-      local ax, ay, az, a = rotation.to_axis_angle({ 1, 0, 0, 0, 1, 0, 0, 0, 1 })
-      assert.same({ 1, 0, 0, 0 }, { ax, ay, az, a })
     end)
   end)
 

@@ -1,5 +1,6 @@
 local square = require("tagpose.square")
-local linsolve = require("tagpose.linsolve")
+local elimination = require("support.elimination")
+local report = require("support.report")
 local geometry = require("support.geometry")
 
 local camera = { fx = 800, fy = 760, cx = 322.5, cy = 241.5, width = 640, height = 480 }
@@ -25,12 +26,12 @@ end
 describe("tagpose.square", function()
   local rng = geometry.rng(20171201)
 
-  describe("camera_equations()", function()
+  describe("the report's camera equations (support.report)", function()
     it("are satisfied by the unknowns of the true pose", function()
       for _ = 1, 100 do
         local r, t = geometry.random_pose(rng, camera, 0.05)
         local m = corners(rng, r, t, 0.05, 0)
-        local e = square.camera_equations(m)
+        local e = report.camera_equations(m)
         local v = unknowns(r, t, 0.05)
         for row = 0, 7 do
           local s = 0
@@ -46,14 +47,14 @@ describe("tagpose.square", function()
       for _ = 1, 100 do
         local r, t = geometry.random_pose(rng, camera, 0.05)
         local m = corners(rng, r, t, 0.05, 1.0) -- noisy: a parallelogram, not a square
-        local e = square.camera_equations(m)
+        local e = report.camera_equations(m)
         -- move the z column (z = 1) to the right-hand side, solve for the other eight
         local a, b, cols = {}, {}, { 1, 2, 4, 5, 6, 7, 8, 9 }
         for row = 0, 7 do
           for k, j in ipairs(cols) do a[row * 8 + k] = e[row * 9 + j] end
           b[row + 1] = -e[row * 9 + 3]
         end
-        local x = assert(linsolve.solve(8, a, b))
+        local x = assert(elimination.solve(8, a, b))
         local X0, Y0 = square.proximate(assert(square.shape(m)))
         assert.near(x[5], X0, 1e-12) -- c / z
         assert.near(x[8], Y0, 1e-12) -- r / z
@@ -77,14 +78,14 @@ describe("tagpose.square", function()
         local r, t = geometry.random_pose(rng, camera, 0.05)
         local m = corners(rng, r, t, 0.05, 1.0)
         local q = square.quadratics(m)
-        local e = square.camera_equations(m)
+        local e = report.camera_equations(m)
         -- six equations; unknowns x, y, a, b, p, q on the left, base c, r, z on the right
         local a, b, left, base = {}, {}, { 1, 2, 4, 5, 7, 8 }, { 6, 9, 3 }
         for row = 0, 5 do
           for k, j in ipairs(left) do a[row * 6 + k] = e[row * 9 + j] end
           for k, j in ipairs(base) do b[row * 3 + k] = -e[row * 9 + j] end
         end
-        local lin = assert(linsolve.solve(6, a, b, 3))
+        local lin = assert(elimination.solve(6, a, b, 3))
         for _ = 1, 5 do
           local X, Y = rng.uniform(-0.5, 0.5), rng.uniform(-0.5, 0.5)
           local v = {} -- x, y, a, b, p, q at c = X, r = Y, z = 1

@@ -26,26 +26,31 @@ local abs, min = math.abs, math.min
 
 local M = {}
 
+-- The column permutations p (row i has its entry in column p[i]) and their parities; a rotation
+-- of the cube is a permutation with signs on its rows whose product is the parity.
+local PERMUTATIONS = { { 1, 2, 3 }, { 1, 3, 2 }, { 2, 1, 3 }, { 2, 3, 1 }, { 3, 1, 2 },
+  { 3, 2, 1 } }
+local PARITY = { 1, -1, -1, 1, 1, -1 }
+
 --- The 24 rotations of the cube, flat row-major; `ROTATIONS[1]` is the identity. Constants:
 -- never write into them.
 M.ROTATIONS = {}
 
-do
-  -- every permutation (a, b, c) of the columns and every sign pattern, kept when det = +1
-  local perms = { { 1, 2, 3 }, { 1, 3, 2 }, { 2, 1, 3 }, { 2, 3, 1 }, { 3, 1, 2 }, { 3, 2, 1 } }
-  local parity = { 1, -1, -1, 1, 1, -1 }
-  local signs = { 1, -1 }
-  for p = 1, 6 do
-    for i = 1, 2 do
-      for j = 1, 2 do
-        for k = 1, 2 do
-          local s = { signs[i], signs[j], signs[k] }
-          if s[1] * s[2] * s[3] * parity[p] == 1 then
-            -- row r has the entry s[r] in column perms[p][r]
-            local g = { 0, 0, 0, 0, 0, 0, 0, 0, 0 }
-            for r = 1, 3 do g[(r - 1) * 3 + perms[p][r]] = s[r] end
-            M.ROTATIONS[#M.ROTATIONS + 1] = g
-          end
+-- BY_PATTERN[(p - 1) * 8 + bits + 1]: the index into ROTATIONS of permutation p with the rows'
+-- signs as bits 1, 2, 4 (set = negative)
+local BY_PATTERN = {}
+
+for p = 1, 6 do
+  local perm = PERMUTATIONS[p]
+  for i = 0, 1 do
+    for j = 0, 1 do
+      for k = 0, 1 do
+        local s1, s2, s3 = 1 - 2 * i, 1 - 2 * j, 1 - 2 * k
+        if s1 * s2 * s3 == PARITY[p] then
+          local g = { 0, 0, 0, 0, 0, 0, 0, 0, 0 }
+          g[perm[1]], g[3 + perm[2]], g[6 + perm[3]] = s1, s2, s3
+          M.ROTATIONS[#M.ROTATIONS + 1] = g
+          BY_PATTERN[(p - 1) * 8 + i + 2 * j + 4 * k + 1] = #M.ROTATIONS
         end
       end
     end
@@ -71,26 +76,6 @@ face("+z", { 0, 0, 1 }, { 1, 0, 0, 0, -1, 0, 0, 0, -1 })
 face("-z", { 0, 0, -1 }, { 1, 0, 0, 0, 1, 0, 0, 0, 1 })
 
 local NORMAL_NAMES = { "+x", "-x", "+y", "-y", "+z", "-z" }
-
--- The 24 rotations by column permutation and signs: for a permutation p (row i has its entry in
--- column p[i]) and the signs of rows 1, 2, 3 as bits 1, 2, 4 (set = negative), the index into
--- ROTATIONS.
-local PERMUTATIONS = { { 1, 2, 3 }, { 2, 3, 1 }, { 3, 1, 2 }, { 1, 3, 2 }, { 3, 2, 1 },
-  { 2, 1, 3 } }
-local PARITY = { 1, 1, 1, -1, -1, -1 }
-local BY_PATTERN = {}
-for k, g in ipairs(ROTATIONS) do
-  for p = 1, 6 do
-    local perm = PERMUTATIONS[p]
-    local bits, match = 0, true
-    for i = 1, 3 do
-      local v = g[(i - 1) * 3 + perm[i]]
-      if v == 0 then match = false end
-      if v < 0 then bits = bits + (i == 1 and 1 or i == 2 and 2 or 4) end
-    end
-    if match then BY_PATTERN[(p - 1) * 8 + bits + 1] = k end
-  end
-end
 
 --- `INVERSE[k]` is the index of the inverse (transpose) of `ROTATIONS[k]`.
 M.INVERSE = {}
@@ -170,6 +155,23 @@ function M.closest(r, ref, out)
   return rotation.multiply(r, g, out)
 end
 
+--- The face axis of a block rotation nearest a direction: the column of `r` most parallel or
+-- anti-parallel to `(ux, uy, uz)` (ties go to the earlier column), unrolled.
+-- @tparam {number,...} r flat block → camera rotation
+-- @tparam number ux the direction, camera frame (need not be unit)
+-- @tparam number uy
+-- @tparam number uz
+-- @treturn int k the column (1, 2 or 3)
+-- @treturn number the column's dot product with the direction (its sign: which way it points)
+function M.nearest_axis(r, ux, uy, uz)
+  local d1 = r[1] * ux + r[4] * uy + r[7] * uz
+  local d2 = r[2] * ux + r[5] * uy + r[8] * uz
+  local d3 = r[3] * ux + r[6] * uy + r[9] * uz
+  if abs(d1) >= abs(d2) and abs(d1) >= abs(d3) then return 1, d1 end
+  if abs(d2) >= abs(d3) then return 2, d2 end
+  return 3, d3
+end
+
 --- The canonical frame among a block rotation's 24 equivalents: block z is the face axis
 -- (signed column of `r`) closest to `up`, block x the remaining face axis closest to `ahead`,
 -- y = z × x. Ties go to the earlier column and to `+` before `-`.
@@ -183,16 +185,8 @@ end
 -- @tparam {number,...} out array to fill (may be `r`)
 -- @treturn {number,...} out
 function M.canonical(r, ux, uy, uz, ax, ay, az, out)
-  -- z: the column most (anti-)parallel to up (unrolled: see `nearest`)
-  local d1 = r[1] * ux + r[4] * uy + r[7] * uz
-  local d2 = r[2] * ux + r[5] * uy + r[8] * uz
-  local d3 = r[3] * ux + r[6] * uy + r[9] * uz
-  local kz, sz = 3, d3
-  if abs(d1) >= abs(d2) and abs(d1) >= abs(d3) then
-    kz, sz = 1, d1
-  elseif abs(d2) >= abs(d3) then
-    kz, sz = 2, d2
-  end
+  -- z: the column most (anti-)parallel to up
+  local kz, sz = M.nearest_axis(r, ux, uy, uz)
   sz = sz < 0 and -1 or 1
   -- x: of the other two, the column most (anti-)parallel to ahead
   local kp, kq = 2, 3

@@ -11,83 +11,30 @@
 local compat = require("tagpose.compat")
 local args = require("tagpose.args")
 local camera_model = require("tagpose.camera")
-local square = require("tagpose.square")
 local solvequad = require("tagpose.solvequad")
-local refine = require("tagpose.refine")
 local rotation = require("tagpose.rotation")
 local track = require("tagpose.track")
 local pose = require("tagpose.pose")
-local ippe = require("tagpose.ippe")
+local pipeline = require("tagpose.pipeline")
 
-local is_finite, is_positive, describe = compat.is_finite, args.is_positive, args.describe
-local sqrt, max, huge = math.sqrt, math.max, math.huge
+local is_positive, describe = args.is_positive, args.describe
+local sqrt = math.sqrt
 local to_quaternion = rotation.to_quaternion
+local _ = compat
 
 local M = {
   _VERSION = "tagpose 0.1.0",
   camera = camera_model,
 }
 
---- solveQuad's threshold when it only starts the refined method (unless `options.tolerance`
--- says otherwise): the refinement converges to the same pose from any start this close, so
--- solving the quadratics to the report's 1e-10 would be work thrown away. (The refined method
--- starts from `tagpose.ippe`'s poses; the report's method is its fallback start.)
-M.REFINED_TOLERANCE = 1e-7
+--- solveQuad's threshold when it only starts the refined method, unless `options.tolerance`
+-- says otherwise (`tagpose.pipeline.REFINED_TOLERANCE`).
+M.REFINED_TOLERANCE = pipeline.REFINED_TOLERANCE
 
--- scratch, written in place on every solve and never handed out
-local px = {} -- pixel corners, flat
-local m = {} -- normalised, undistorted corners, flat
-local q = {} -- the two quadratics' coefficients
-local depth = {} -- the proximate solution's corner depths
-local r1, r2 = {}, {} -- rotations of the two candidates
-local qa, qb = {}, {} -- their quaternions {w, x, y, z}
-local state = {} -- tracking state of this frame
-local prior_state = {} -- tracking state made from a prior without one
+local work = pipeline.new() -- the pipeline's workspace, reused by every solve
+local state = {} -- tracking state of this frame, when the result has none to fill
+local qa, qb = {}, {} -- the candidates' quaternions, as the tracker takes them
 local spare = setmetatable({}, { __mode = "k" }) -- into -> an alternative table to reuse
-
--- The quaternion {w, x, y, z} of a pose table (quaternion or rotation field), or nil.
-local function pose_quaternion(p, out)
-  if type(p) ~= "table" then return nil end
-  local qt = p.quaternion
-  if type(qt) == "table" and is_finite(qt.w) and is_finite(qt.x) and is_finite(qt.y)
-    and is_finite(qt.z) then
-    local n = sqrt(qt.w * qt.w + qt.x * qt.x + qt.y * qt.y + qt.z * qt.z)
-    if n > 0 then
-      out[1], out[2], out[3], out[4] = qt.w / n, qt.x / n, qt.y / n, qt.z / n
-      return out
-    end
-  end
-  local rt = p.rotation
-  if type(rt) == "table" and type(rt[1]) == "table" and type(rt[2]) == "table"
-    and type(rt[3]) == "table" then
-    local flat = rotation.from_nested(rt, r2)
-    for i = 1, 9 do
-      if not is_finite(flat[i]) then return nil end
-    end
-    out[1], out[2], out[3], out[4] = to_quaternion(flat)
-    return out
-  end
-  return nil
-end
-
--- The tracking state a prior carries, or one made from its pose (and alternative's).
-local function read_prior(prior)
-  local t = prior.track
-  if type(t) == "table" then
-    local ok = true
-    for i = 1, 10 do
-      if not is_finite(t[i]) then ok = false end
-    end
-    if ok and t[10] > 0 then return t end
-  end
-  if not pose_quaternion(prior, qa) then return nil end
-  local alt = pose_quaternion(prior.alternative, qb) or qa
-  for i = 1, 4 do
-    prior_state[i], prior_state[4 + i] = qa[i], alt[i]
-  end
-  prior_state[9], prior_state[10] = 0, nil -- the noise is taken from this frame
-  return prior_state
-end
 
 -- Read the options; or nil and a description of the misuse.
 local function read_options(options)
@@ -118,7 +65,7 @@ local function read_options(options)
     if type(prior) ~= "table" then
       return nil, "options.prior: pose table expected, got " .. type(prior)
     end
-    prior = read_prior(prior)
+    prior = track.from_prior(prior)
     if not prior then
       return nil, "options.prior: pose with a finite quaternion or rotation expected"
     end
@@ -133,123 +80,42 @@ local function arg_error(n, message)
   args.raise(n, "solve", message, 3)
 end
 
-local function finite_pose(r, tx, ty, tz, err)
-  local s = tx + ty + tz + err
-  for i = 1, 9 do s = s + r[i] end
-  return s == s and s < huge and s > -huge
-end
-
--- Normalise and undistort the corners (px into m) and check their shape: true, or nil and why.
--- The proximate depths go into `depth`.
-local function prepare(camera)
-  if camera.distortion == nil then
-    local fx, fy, cx, cy = camera.fx, camera.fy, camera.cx, camera.cy
-    m[1], m[2], m[3], m[4] = (px[1] - cx) / fx, (px[2] - cy) / fy, (px[3] - cx) / fx,
-      (px[4] - cy) / fy
-    m[5], m[6], m[7], m[8] = (px[5] - cx) / fx, (px[6] - cy) / fy, (px[7] - cx) / fx,
-      (px[8] - cy) / fy
-  else
-    for i = 1, 4 do
-      local x, y = camera_model.normalise(camera, px[2 * i - 1], px[2 * i])
-      if not x then return nil, y .. " (corner " .. i .. ")" end
-      m[2 * i - 1], m[2 * i] = x, y
-    end
-  end
-  local l1, l2, l3, l4 = square.shape(m)
-  if not l1 then return nil, l2 end
-  depth[1], depth[2], depth[3], depth[4] = l1, l2, l3, l4
-  return true
-end
-
--- The report's method on the prepared corners: the pose into r1 and tx, ty, tz, iterations; or
--- nil, why, iterations.
-local function seed(half, tol, max_it)
-  local X0, Y0 = square.proximate(depth[1], depth[2], depth[3], depth[4])
-  square.quadratics(m, q)
-  local X, Y, iterations = solvequad.solve(q, X0, Y0, tol, max_it)
-  if not X then return nil, Y, iterations end
-  local tx, ty, tz = square.pose(m, X, Y, half, r1)
-  if not tx then return nil, ty, iterations end
-  return tx, ty, tz, iterations
-end
-
--- The proximate pose into r1, for a start where the report's method gives none.
-local function proximate(half)
-  return square.proximate_pose(m, depth[1], depth[2], depth[3], depth[4], half, r1)
-end
-
--- The two local minima of the planar ambiguity from one start in r1: the start refined over
--- all four corners, and the mirror of that minimum refined. Returns both (translations, sums
--- of squared residuals, linearisations); a sum is math.huge where its start put a corner
--- behind the camera.
-local function minima(camera, half, tx, ty, tz)
-  local c1, k1, c2, k2, ux, uy, uz
-  tx, ty, tz, c1, k1 = refine.refine(camera, px, half, r1, tx, ty, tz)
-  refine.mirror(r1, tx, ty, tz, r2)
-  ux, uy, uz, c2, k2 = refine.refine(camera, px, half, r2, tx, ty, tz)
-  return tx, ty, tz, c1, k1, ux, uy, uz, c2, k2
-end
-
--- The result of the refined method from the two minima (the first in r1, the second in r2;
--- a sum of squares math.huge where that start led nowhere): the better by error, or the
--- tracker's choice, as the pose, the other as its alternative.
-local function choose(tx, ty, tz, c1, k1, ux, uy, uz, c2, k2, iterations, prior, into)
-  if not (c1 < huge) then
-    if not (c2 < huge) then
-      return nil, "refine: no pose puts every corner in front of the camera"
-    end
-    -- only the second start led to a pose: it is the one
-    for i = 1, 9 do r1[i] = r2[i] end
-    tx, ty, tz, c1, c2 = ux, uy, uz, c2, huge
-  end
-  local w1, x1, y1, z1 = to_quaternion(r1)
-  local w2, x2, y2, z2 = w1, x1, y1, z1
-  local has2 = false
-  if c2 < huge then
-    w2, x2, y2, z2 = to_quaternion(r2)
-    -- two minima, unless both starts reached the same one (the quaternions' chord, q ~ -q, below
-    -- 5e-7: an angle below 1e-6 rad)
-    local dw, dx, dy, dz = w1 - w2, x1 - x2, y1 - y2, z1 - z2
-    local ow, ox, oy, oz = w1 + w2, x1 + x2, y1 + y2, z1 + z2
-    local dp, dm = dw * dw + dx * dx + dy * dy + dz * dz, ow * ow + ox * ox + oy * oy + oz * oz
-    has2 = (dp < dm and dp or dm) > 2.5e-13
-  end
-  -- which candidate is the pose: the smaller error, or the tracker's choice
-  local first = c2 < c1 and 2 or 1
-  local out_state = into and type(into.track) == "table" and into.track or state
-  if first == 1 then
-    qa[1], qa[2], qa[3], qa[4], qb[1], qb[2], qb[3], qb[4] = w1, x1, y1, z1, w2, x2, y2, z2
-  else
-    qa[1], qa[2], qa[3], qa[4], qb[1], qb[2], qb[3], qb[4] = w2, x2, y2, z2, w1, x1, y1, z1
-  end
-  local sse_a, sse_b = first == 1 and c1 or c2, first == 1 and c2 or c1
+-- Which candidate of an ordered workspace is the pose: the first (the smaller error), or the
+-- tracker's choice given the prior's state; the track state of this frame goes into `out`.
+-- Returns the pose's candidate and the other (nil when there is no second minimum).
+local function choose(w, prior, out)
+  local a, b = w.first, w.second
+  local has2 = w.count == 2
+  qa[1], qa[2], qa[3], qa[4] = a.qw, a.qx, a.qy, a.qz
+  qb[1], qb[2], qb[3], qb[4] = b.qw, b.qx, b.qy, b.qz
   if prior then
-    if prior[10] == nil then prior[10] = max(0.5 * sse_a, track.NOISE_FLOOR) end
-    if track.choose(prior, qa, sse_a, has2 and qb or nil, sse_b, out_state) == 2 then
-      first = 3 - first
+    if track.choose(prior, qa, a.sse, has2 and qb or nil, b.sse, out) == 2 and has2 then
+      a, b = b, a
     end
   else
-    track.start(out_state, qa, sse_a, has2 and qb or nil, sse_b)
+    track.start(out, qa, a.sse, has2 and qb or nil, b.sse)
   end
+  return a, has2 and b or nil
+end
 
-  local ra, rb = r1, r2
-  local ax, ay, az, bx, by, bz = tx, ty, tz, ux, uy, uz
-  local ca, cb, ka, kb = c1, c2, k1, k2
-  if first == 2 then
-    ra, rb, ax, ay, az, bx, by, bz, ca, cb, ka, kb = r2, r1, ux, uy, uz, tx, ty, tz, c2, c1, k2, k1
-    w1, x1, y1, z1, w2, x2, y2, z2 = w2, x2, y2, z2, w1, x1, y1, z1
-  end
-  local ea, eb = sqrt(ca / 4), sqrt(cb / 4)
-  if not finite_pose(ra, ax, ay, az, ea) then
+-- The public result of the refined method from an ordered workspace.
+local function refined_result(w, prior, into)
+  local out_state = into and type(into.track) == "table" and into.track or state
+  local a, b = choose(w, prior, out_state)
+  local ea = sqrt(a.sse / 4)
+  if not pose.is_finite(a, ea) then
     return nil, "tagpose: no finite pose for these corners"
   end
   local alt = nil
-  if has2 and finite_pose(rb, bx, by, bz, eb) then
-    local reuse = into and (into.alternative or spare[into])
-    alt = pose.result(rb, bx, by, bz, eb, iterations, kb, reuse, w2, x2, y2, z2)
-    alt.alternative, alt.track = nil, nil
+  if b then
+    local eb = sqrt(b.sse / 4)
+    if pose.is_finite(b, eb) then
+      alt = pose.result(b, eb, w.iterations, b.linearisations, into and (into.alternative
+        or spare[into]))
+      alt.alternative, alt.track = nil, nil
+    end
   end
-  local result = pose.result(ra, ax, ay, az, ea, iterations, ka + kb, into, w1, x1, y1, z1)
+  local result = pose.result(a, ea, w.iterations, w.linearisations, into)
   if into and result.alternative and not alt then spare[into] = result.alternative end
   result.alternative = alt
   local st = result.track
@@ -262,42 +128,17 @@ local function choose(tx, ty, tz, c1, k1, ux, uy, uz, c2, k2, iterations, prior,
   return result
 end
 
--- The refined method when the local starts put a corner behind the camera (at round-off, on
--- tiny or extreme tags): the report's pose and its mirror, else the proximate pose and its
--- mirror. `spent`: the linearisations already used.
-local function fallback(camera, half, tol, max_it, prior, into, spent)
-  local sx, sy, sz, iterations = seed(half, tol, max_it)
-  local why
-  if not sx then
-    why, iterations = sy, sz
-    sx, sy, sz = proximate(half)
-    if not sx then return nil, sy end
+-- The public result of the report's method (one candidate, its error measured here).
+local function seed_result(w, half, into)
+  local a = w.first
+  a.qw, a.qx, a.qy, a.qz = to_quaternion(a.r)
+  local err = pose.reprojection_error(w.C, a.r, a.tx, a.ty, a.tz, half, w.px)
+  if not pose.is_finite(a, err) then
+    return nil, "tagpose: no finite pose for these corners"
   end
-  local tx, ty, tz, c1, k1, ux, uy, uz, c2, k2 = minima(camera, half, sx, sy, sz)
-  if not (c1 < huge or c2 < huge) and why == nil then
-    spent = spent + k1 + k2
-    sx, sy, sz = proximate(half)
-    if sx then tx, ty, tz, c1, k1, ux, uy, uz, c2, k2 = minima(camera, half, sx, sy, sz) end
-  end
-  return choose(tx, ty, tz, c1, k1 + spent, ux, uy, uz, c2, k2, iterations, prior, into)
-end
-
--- The refined method: both local minima of the planar ambiguity, refined over all four corners
--- from the local (IPPE) poses of the square, then chosen between. (The stages are tail calls
--- so that few values are live where they branch: LuaJIT cannot compile side exits that carry
--- many.)
-local function refined(camera, half, tol, max_it, prior, into)
-  local spent = 0
-  local sx, sy, sz = ippe.poses(m, depth[1], depth[2], depth[3], depth[4], half, r1, r2)
-  if sx then
-    local tx, ty, tz, c1, k1 = refine.refine(camera, px, half, r1, sx, sy, sz)
-    local ux, uy, uz, c2, k2 = refine.refine(camera, px, half, r2, sx, sy, sz)
-    if c1 < huge or c2 < huge then
-      return choose(tx, ty, tz, c1, k1, ux, uy, uz, c2, k2, 0, prior, into)
-    end
-    spent = k1 + k2
-  end
-  return fallback(camera, half, tol, max_it, prior, into, spent)
+  local result = pose.result(a, err, w.iterations, nil, into)
+  if into then into.alternative, into.track = nil, nil end
+  return result
 end
 
 --- Solve the pose of one tag.
@@ -322,7 +163,8 @@ end
 -- local pose = tagpose.solve({{280, 280}, {360, 280}, {360, 200}, {280, 200}},
 --   {fx = 883.98, fy = 883.98, cx = 319.5, cy = 239.5}, 0.024)
 function M.solve(corners, camera, tag_size, options)
-  local bad, problem = args.read_corners(corners, px)
+  local w = work
+  local bad, problem = args.read_corners(corners, w.px)
   if not bad then arg_error(1, problem) end
   problem = camera_model.check(camera)
   if problem then arg_error(2, problem) end
@@ -332,22 +174,20 @@ function M.solve(corners, camera, tag_size, options)
   local method, tol, max_it, prior, into = read_options(options)
   if not method then arg_error(4, tol) end
   if bad ~= true then return nil, "tagpose: corner " .. bad .. " is not finite" end
-  local ok, why = prepare(camera)
+  local ok, why = pipeline.prepare(w, camera)
   if not ok then return nil, why end
   local half = 0.5 * tag_size
-  if method == "refined" then return refined(camera, half, tol, max_it, prior, into) end
-  local tx, ty, tz, iterations = seed(half, tol, max_it)
-  if not tx then return nil, ty end
-  local err = pose.reprojection_error(camera, r1, tx, ty, tz, half, px)
-  if not finite_pose(r1, tx, ty, tz, err) then
-    return nil, "tagpose: no finite pose for these corners"
+  if method == "refined" then
+    ok, why = pipeline.refined(w, half, tol, max_it)
+    if not ok then return nil, why end
+    return refined_result(w, prior, into)
   end
-  local result = pose.result(r1, tx, ty, tz, err, iterations, nil, into)
-  if into then into.alternative, into.track = nil, nil end
-  return result
+  ok, why = pipeline.seed(w, half, tol, max_it)
+  if not ok then return nil, why end
+  return seed_result(w, half, into)
 end
 
---- Blocks: cubes carrying a tag on each face (`tagpose.block`; it uses `solve` above).
+--- Blocks: cubes carrying a tag on each face (`tagpose.block`).
 M.block = require("tagpose.block")
 
 return M

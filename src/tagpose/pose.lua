@@ -9,11 +9,10 @@
 -- @module tagpose.pose
 
 local rotation = require("tagpose.rotation")
-local camera_model = require("tagpose.camera")
+local lsq = require("tagpose.lsq")
 
 local sqrt = math.sqrt
-local project = camera_model.project
-local to_quaternion = rotation.to_quaternion
+local residual = lsq.residual
 
 local M = {}
 
@@ -24,7 +23,7 @@ M.CORNER_Y = { 1, 1, -1, -1 }
 local CX, CY = M.CORNER_X, M.CORNER_Y
 
 --- RMS reprojection error, in pixels, of the four corners of a pose.
--- @tparam table camera a checked camera
+-- @tparam table C a packed camera (`tagpose.lsq.pack`)
 -- @tparam {number,...} r flat rotation
 -- @tparam number tx
 -- @tparam number ty
@@ -33,50 +32,40 @@ local CX, CY = M.CORNER_X, M.CORNER_Y
 -- @tparam {number,...} px the observed pixels, flat
 -- @treturn number RMS over the corners of the distance between observed and projected pixel
 --   (`math.huge` when a corner is not in front of the camera)
-function M.reprojection_error(camera, r, tx, ty, tz, half, px)
-  local pinhole = camera.distortion == nil
-  local fx, fy, cx, cy = camera.fx, camera.fy, camera.cx, camera.cy
+function M.reprojection_error(C, r, tx, ty, tz, half, px)
   local r1, r2, r4, r5, r7, r8 = r[1], r[2], r[4], r[5], r[7], r[8]
+  local pinhole, fx, fy, cx, cy = C.lens == 0, C.fx, C.fy, C.cx, C.cy
   local sum = 0
   for i = 1, 4 do
     local a, b = CX[i] * half, CY[i] * half
-    local x = r1 * a + r2 * b + tx
-    local y = r4 * a + r5 * b + ty
-    local z = r7 * a + r8 * b + tz
-    if not (z > 0) then return math.huge end
-    local u, v
-    if pinhole then
-      u, v = fx * x / z + cx, fy * y / z + cy
+    local x, y, z = r1 * a + r2 * b + tx, r4 * a + r5 * b + ty, r7 * a + r8 * b + tz
+    local du, dv
+    if pinhole and z > 0 then
+      -- (the pinhole written out: the seed method's last step)
+      du, dv = fx * (x / z) + cx - px[2 * i - 1], fy * (y / z) + cy - px[2 * i]
     else
-      u, v = project(camera, x, y, z)
+      du, dv = residual(C, x, y, z, px[2 * i - 1], px[2 * i])
     end
-    local du, dv = u - px[2 * i - 1], v - px[2 * i]
     sum = sum + du * du + dv * dv
   end
   return sqrt(sum / 4)
 end
 
---- Fill (or create) the public pose table of DESIGN.md from an internal pose.
+--- Fill (or create) the public pose table of DESIGN.md from a candidate pose.
 -- A new table is built with table constructors (one allocation per table); `into` is filled in
 -- place, reusing its sub-tables, so that a caller who passes the same table every frame
 -- allocates nothing.
--- @tparam {number,...} r flat rotation
--- @tparam number tx
--- @tparam number ty
--- @tparam number tz
+-- @tparam table cand a candidate record (`tagpose.pipeline.candidate`: `r`, `tx`, `ty`, `tz`
+--   and the quaternion `qw`, `qx`, `qy`, `qz`)
 -- @tparam number err RMS reprojection error (px)
 -- @tparam int iterations solveQuad iterations
 -- @tparam[opt] int refine_iterations refinement linearisations (refined method)
 -- @tparam[opt] table into a pose table to fill and return instead of a new one
--- @tparam[opt] number qw the rotation's quaternion, when the caller has it already
--- @tparam[opt] number qx
--- @tparam[opt] number qy
--- @tparam[opt] number qz
 -- @treturn table `{position =, rotation =, quaternion =, error =, iterations =,
 --   refine_iterations =}`
-function M.result(r, tx, ty, tz, err, iterations, refine_iterations, into, qw, qx, qy, qz)
-  local w, x, y, z = qw, qx, qy, qz
-  if w == nil then w, x, y, z = to_quaternion(r) end
+function M.result(cand, err, iterations, refine_iterations, into)
+  local r, w, x, y, z = cand.r, cand.qw, cand.qx, cand.qy, cand.qz
+  local tx, ty, tz = cand.tx, cand.ty, cand.tz
   if not into then
     return {
       position = { x = tx, y = ty, z = tz },
@@ -107,6 +96,17 @@ function M.result(r, tx, ty, tz, err, iterations, refine_iterations, into, qw, q
   qt.w, qt.x, qt.y, qt.z = w, x, y, z
   into.error, into.iterations, into.refine_iterations = err, iterations, refine_iterations
   return into
+end
+
+--- True when a candidate pose and its error are finite.
+-- @tparam table cand a candidate record
+-- @tparam number err its error
+-- @treturn boolean
+function M.is_finite(cand, err)
+  local r = cand.r
+  local s = cand.tx + cand.ty + cand.tz + err
+  for i = 1, 9 do s = s + r[i] end
+  return s == s and s < math.huge and s > -math.huge
 end
 
 return M

@@ -17,18 +17,20 @@
 -- (IPPE, Schweighofer-Pinz). With `v` the unit line of sight to the tag centre, the mirrored
 -- pose keeps the centre and takes `R' = (I - 2 v vᵀ) R diag(1, 1, -1)`.
 --
--- Poses are a flat rotation `r` (row-major, tag → camera) and `tx, ty, tz`; pixels are flat
--- `{u1, v1, ..., u4, v4}`; `half` is half the tag side.
+-- A pose is a candidate record (`tagpose.pipeline.candidate`): a flat rotation `r` (row-major,
+-- tag → camera) and `tx, ty, tz`; pixels are flat `{u1, v1, ..., u4, v4}`; `half` is half the
+-- tag side; the camera is packed (`tagpose.lsq.pack`). The kernels (per-point normal
+-- equations, damped step, Cayley update) are `tagpose.lsq`'s.
 -- @module tagpose.refine
 
-local linsolve = require("tagpose.linsolve")
 local compat = require("tagpose.compat")
-local camera_model = require("tagpose.camera")
+local lsq = require("tagpose.lsq")
+local pose = require("tagpose.pose")
 
 local sqrt = math.sqrt
 local huge = math.huge
-local lens, brown, fisheye = camera_model.lens, camera_model.brown, camera_model.fisheye
-local spd6 = linsolve.spd6
+local accumulate, damped_step, cayley, residual = lsq.accumulate, lsq.damped_step, lsq.cayley,
+  lsq.residual
 
 local M = {}
 
@@ -41,112 +43,28 @@ M.STEP_RELATIVE = 1e-2
 --- ... or below `STEP_TOLERANCE`² (px²) when the residuals are at round-off (exact corners).
 M.STEP_TOLERANCE = 1e-5
 
-local CX = { -1, 1, 1, -1 }
-local CY = { 1, 1, -1, -1 }
-
--- The constants of a refinement: fx, fy, cx, cy, half the tag side, the lens kind and its
--- coefficients (see camera.lens), filled once per call.
-local function constants(C, camera, half)
-  C[1], C[2], C[3], C[4], C[5] = camera.fx, camera.fy, camera.cx, camera.cy, half
-  C[6], C[7], C[8], C[9], C[10], C[11], C[12], C[13], C[14] = lens(camera)
-  for i = 7, 14 do
-    if C[i] == nil then C[i] = 0 end
-  end
-  return C
-end
+local CX, CY = pose.CORNER_X, pose.CORNER_Y
 
 -- Sum of squared pixel residuals of a pose Q = {ax, ay, az, bx, by, bz, tx, ty, tz}: the tag's x
 -- and y axes in the camera (columns 1 and 2 of R) and t; math.huge when a corner is not in
 -- front of the camera.
-local function residuals(px, C, Q)
-  local fx, fy, cx, cy, half, kind = C[1], C[2], C[3], C[4], C[5], C[6]
+local function residuals(px, C, half, Q)
   local ax, ay, az, bx, by, bz, tx, ty, tz = Q[1], Q[2], Q[3], Q[4], Q[5], Q[6], Q[7], Q[8], Q[9]
-  local l1, l2, l3, l4, l5, l6, l7, l8 = C[7], C[8], C[9], C[10], C[11], C[12], C[13], C[14]
   local sum = 0
   for i = 1, 4 do
     local ca, cb = CX[i] * half, CY[i] * half
-    local z = az * ca + bz * cb + tz
-    if not (z > 0) then return huge end
-    local pu, pv = (ax * ca + bx * cb + tx) / z, (ay * ca + by * cb + ty) / z
-    if kind == 1 then
-      pu, pv = brown(pu, pv, l1, l2, l3, l4, l5, l6, l7, l8)
-    elseif kind == 2 then
-      pu, pv = fisheye(pu, pv, l1, l2, l3, l4)
-    end
-    local du, dv = fx * pu + cx - px[2 * i - 1], fy * pv + cy - px[2 * i]
+    local du, dv = residual(C, ax * ca + bx * cb + tx, ay * ca + by * cb + ty,
+      az * ca + bz * cb + tz, px[2 * i - 1], px[2 * i])
     sum = sum + du * du + dv * dv
   end
   return sum
-end
-
--- One point's share of the normal equations H δ = -g over (δω, δt), added into N as
--- {h11, h12, ..., h16, h22, ..., h66, g1, ..., g6} (upper triangle row by row, then g), for any
--- lens; returns the point's squared pixel residual, or math.huge (N untouched) when the point
--- is not in front of the camera. The point is X = Y + t in the camera frame, Y = R·P its offset
--- from the body origin, observed at pixel (u, v); C holds the camera constants as `constants`
--- packs them (fx, fy, cx, cy, -, lens kind, its 8 coefficients). With e = ∂residual/∂X, the
--- residual's Jacobian row is (Y × e, e); H += j jᵀ, g += j r. For a pinhole,
--- e_u = (fx/z)·(1, 0, -pu) and e_v = (fy/z)·(0, 1, -pv) give the rows written out below.
--- `tagpose.rigid` accumulates its points with it too.
-local function accumulate(N, C, y1, y2, y3, tx, ty, tz, u, v)
-  local z = y3 + tz
-  if not (z > 0) then return huge end
-  local fx, fy, kind = C[1], C[2], C[6]
-  local iz = 1 / z
-  local pu, pv = (y1 + tx) * iz, (y2 + ty) * iz
-  if kind == 0 then
-    -- pinhole: the Jacobian rows are u = (fx/z)·(-pu·Y2, Y3 + pu·Y1, -Y2, 1, 0, -pu) and
-    -- v = (fy/z)·(-pv·Y2 - Y3, pv·Y1, Y1, 0, 1, -pv); H += u uᵀ + v vᵀ, g += u ru + v rv
-    local ru, rv = fx * pu + C[3] - u, fy * pv + C[4] - v
-    local fa, fb = fx * iz, fy * iz
-    local u1, u2, u3, u6 = -fa * pu * y2, fa * (y3 + pu * y1), -fa * y2, -fa * pu
-    local v1, v2, v3, v6 = -fb * (pv * y2 + y3), fb * pv * y1, fb * y1, -fb * pv
-    N[1], N[2] = N[1] + u1 * u1 + v1 * v1, N[2] + u1 * u2 + v1 * v2
-    N[3], N[4], N[5] = N[3] + u1 * u3 + v1 * v3, N[4] + u1 * fa, N[5] + v1 * fb
-    N[6], N[7] = N[6] + u1 * u6 + v1 * v6, N[7] + u2 * u2 + v2 * v2
-    N[8], N[9], N[10] = N[8] + u2 * u3 + v2 * v3, N[9] + u2 * fa, N[10] + v2 * fb
-    N[11], N[12] = N[11] + u2 * u6 + v2 * v6, N[12] + u3 * u3 + v3 * v3
-    N[13], N[14], N[15] = N[13] + u3 * fa, N[14] + v3 * fb, N[15] + u3 * u6 + v3 * v6
-    N[16], N[18], N[19] = N[16] + fa * fa, N[18] + fa * u6, N[19] + fb * fb
-    N[20], N[21] = N[20] + fb * v6, N[21] + u6 * u6 + v6 * v6
-    N[22], N[23] = N[22] + u1 * ru + v1 * rv, N[23] + u2 * ru + v2 * rv
-    N[24], N[25] = N[24] + u3 * ru + v3 * rv, N[25] + fa * ru
-    N[26], N[27] = N[26] + fb * rv, N[27] + u6 * ru + v6 * rv
-    return ru * ru + rv * rv
-  end
-  -- through the lens: per residual, e = f·(j_1 ∂pu/∂X + j_2 ∂pv/∂X), ∂p/∂X = (1, 0, -p) / z
-  local xd, yd, j11, j12, j21, j22
-  if kind == 1 then
-    xd, yd, j11, j12, j21, j22 = brown(pu, pv, C[7], C[8], C[9], C[10], C[11], C[12], C[13],
-      C[14])
-  else
-    xd, yd, j11, j12, j21, j22 = fisheye(pu, pv, C[7], C[8], C[9], C[10])
-  end
-  local ru, rv = fx * xd + C[3] - u, fy * yd + C[4] - v
-  for row = 1, 2 do
-    local e1, e2, res = fx * j11 * iz, fx * j12 * iz, ru
-    if row == 2 then e1, e2, res = fy * j21 * iz, fy * j22 * iz, rv end
-    local e3 = -(e1 * pu + e2 * pv)
-    local w1, w2, w3 = y2 * e3 - y3 * e2, y3 * e1 - y1 * e3, y1 * e2 - y2 * e1
-    N[1], N[2], N[3] = N[1] + w1 * w1, N[2] + w1 * w2, N[3] + w1 * w3
-    N[4], N[5], N[6] = N[4] + w1 * e1, N[5] + w1 * e2, N[6] + w1 * e3
-    N[7], N[8], N[9] = N[7] + w2 * w2, N[8] + w2 * w3, N[9] + w2 * e1
-    N[10], N[11], N[12] = N[10] + w2 * e2, N[11] + w2 * e3, N[12] + w3 * w3
-    N[13], N[14], N[15] = N[13] + w3 * e1, N[14] + w3 * e2, N[15] + w3 * e3
-    N[16], N[17], N[18] = N[16] + e1 * e1, N[17] + e1 * e2, N[18] + e1 * e3
-    N[19], N[20], N[21] = N[19] + e2 * e2, N[20] + e2 * e3, N[21] + e3 * e3
-    N[22], N[23], N[24] = N[22] + w1 * res, N[23] + w2 * res, N[24] + w3 * res
-    N[25], N[26], N[27] = N[25] + e1 * res, N[26] + e2 * res, N[27] + e3 * res
-  end
-  return ru * ru + rv * rv
 end
 
 -- The normal equations of the pose Q (axes a, b; t) into N, corner by corner (`accumulate`),
 -- and the sum of squared residuals (math.huge when a corner is not in front of the camera),
 -- for any lens. The sums live in the table: LuaJIT cannot compile a loop that leaves with 27
 -- live accumulators.
-local function linearise_looped(N, px, C, Q)
-  local half = C[5]
+local function linearise_looped(N, px, C, half, Q)
   local qax, qay, qaz, qbx, qby, qbz, qx, qy, qz = Q[1], Q[2], Q[3], Q[4], Q[5], Q[6], Q[7], Q[8],
     Q[9]
   for k = 1, 27 do N[k] = 0 end
@@ -174,8 +92,8 @@ end
 -- linearise_looped's pinhole case (a spec checks it), with the four corners written out and
 -- the sums on locals: the fastest form on PUC Lua, and one LuaJIT cannot compile (too many live
 -- values in one trace), so each VM gets its own (see `linearise` below).
-local function linearise_unrolled(N, px, C, Q)
-  local fx, fy, cx, cy, half = C[1], C[2], C[3], C[4], C[5]
+local function linearise_unrolled(N, px, C, half, Q)
+  local fx, fy, cx, cy = C.fx, C.fy, C.cx, C.cy
   local ax, ay, az = half * Q[1], half * Q[2], half * Q[3]
   local bx, by, bz = half * Q[4], half * Q[5], half * Q[6]
   local qx, qy, qz = Q[7], Q[8], Q[9]
@@ -274,48 +192,13 @@ local linearise
 if compat.jit then
   linearise = linearise_looped
 else
-  linearise = function(N, px, C, Q)
-    if C[6] == 0 then return linearise_unrolled(N, px, C, Q) end
-    return linearise_looped(N, px, C, Q)
+  linearise = function(N, px, C, half, Q)
+    if C.lens == 0 then return linearise_unrolled(N, px, C, half, Q) end
+    return linearise_looped(N, px, C, half, Q)
   end
 end
 
 M.linearise_looped, M.linearise_unrolled = linearise_looped, linearise_unrolled
-
--- The damped Gauss-Newton step of the normal equations N, the damping raised (×10) from lambda
--- until the system solves: returns the damping used, the predicted squared displacement of
--- the points (δᵀHδ = -δ·g - λ Σ H_ii δ_i²) and δ = (δω, δt); nil when no damping up to 1e8
--- solves. `tagpose.rigid` steps with it too.
-local function damped_step(N, lambda)
-  local d1, d2, d3, d4, d5, d6
-  while true do
-    local f = 1 + lambda
-    d1, d2, d3, d4, d5, d6 = spd6(N[1] * f, N[2], N[3], N[4], N[5], N[6], N[7] * f, N[8],
-      N[9], N[10], N[11], N[12] * f, N[13], N[14], N[15], N[16] * f, N[17], N[18],
-      N[19] * f, N[20], N[21] * f, -N[22], -N[23], -N[24], -N[25], -N[26], -N[27])
-    if d1 then break end
-    if lambda > 1e8 then return nil end
-    lambda = lambda * 10
-  end
-  local disp = -(d1 * N[22] + d2 * N[23] + d3 * N[24] + d4 * N[25] + d5 * N[26] + d6 * N[27])
-    - lambda * (N[1] * d1 * d1 + N[7] * d2 * d2 + N[12] * d3 * d3 + N[16] * d4 * d4
-      + N[19] * d5 * d5 + N[21] * d6 * d6)
-  return lambda, disp, d1, d2, d3, d4, d5, d6
-end
-
--- The rotation a step δω applies on the left, row-major: the Cayley transform of w = δω / 2,
--- C = I + 2 ([w]× + [w]×²) / (1 + |w|²), an exact rotation that is exp(δω) to first order.
-local function cayley(d1, d2, d3)
-  local w1, w2, w3 = 0.5 * d1, 0.5 * d2, 0.5 * d3
-  local ww = w1 * w1 + w2 * w2 + w3 * w3
-  local n = 2 / (1 + ww)
-  local p12, p13, p23 = n * w1 * w2, n * w1 * w3, n * w2 * w3
-  return 1 + n * (w1 * w1 - ww), p12 - n * w3, p13 + n * w2,
-    p12 + n * w3, 1 + n * (w2 * w2 - ww), p23 - n * w1,
-    p13 - n * w2, p23 + n * w1, 1 + n * (w3 * w3 - ww)
-end
-
-M.accumulate, M.damped_step, M.cayley = accumulate, damped_step, cayley
 
 -- The damped step from the pose P with the normal equations N: writes the trial pose into Q,
 -- R ← C(δω) R, t ← t + δt, and returns the damping used, the predicted squared displacement
@@ -327,7 +210,7 @@ M.accumulate, M.damped_step, M.cayley = accumulate, damped_step, cayley
 -- (f the larger focal length, z the centre's depth, k² = side / z: a rotation by |δω| moves a
 -- corner off its tangent by about |δω|² times its distance from the centre; a translation
 -- bends the projection by (|δt| / z)² times f), squared and summed over the four corners.
-local function step(N, lambda, P, Q, C)
+local function step(N, lambda, P, Q, C, half)
   local disp, d1, d2, d3, d4, d5, d6
   lambda, disp, d1, d2, d3, d4, d5, d6 = damped_step(N, lambda)
   if not lambda then return nil end
@@ -339,49 +222,46 @@ local function step(N, lambda, P, Q, C)
     c31 * bx + c32 * by + c33 * bz
   local z = P[9]
   Q[7], Q[8], Q[9] = P[7] + d4, P[8] + d5, z + d6
-  local f = C[1] > C[2] and C[1] or C[2]
-  local e = f * (sqrt(2 * C[5] / z * (d1 * d1 + d2 * d2 + d3 * d3))
+  local f = C.fx > C.fy and C.fx or C.fy
+  local e = f * (sqrt(2 * half / z * (d1 * d1 + d2 * d2 + d3 * d3))
     + sqrt(d4 * d4 + d5 * d5 + d6 * d6) / z) ^ 2
   return lambda, disp, 4 * e * e
 end
 
 local normal_a, normal_b = {}, {} -- normal equations, filled by linearise
-local K = {} -- the constants of the refinement under way
-local pose_p, pose_q = {}, {} -- its pose and trial pose
+local pose_p, pose_q = {}, {} -- the refinement's pose and trial pose
 
---- Refine a pose in place over the four corners.
--- @tparam table camera a checked camera
+--- Refine a candidate pose in place over the four corners.
+-- @tparam table C a packed camera (`tagpose.lsq.pack`)
 -- @tparam {number,...} px observed pixels, flat
 -- @tparam number half half the tag side
--- @tparam {number,...} r flat rotation: the start, replaced by the result
--- @tparam number tx start translation
--- @tparam number ty
--- @tparam number tz
+-- @tparam table cand a candidate record (`tagpose.pipeline.candidate`): its `r`, `tx`, `ty`,
+--   `tz` are the start and are replaced by the result; `sse` is set to the sum of squared pixel
+--   residuals at the result (`math.huge` when the start puts a corner behind the camera, the
+--   pose then left as it was) and `linearisations` to the linearisations used
 -- @tparam[opt] int max_iterations bound on linearisations (default `MAX_ITERATIONS`)
--- @treturn number tx
--- @treturn number ty
--- @treturn number tz
--- @treturn number the sum of squared pixel residuals at the result (`math.huge` when the start
---   puts a corner behind the camera)
--- @treturn int linearisations used
-function M.refine(camera, px, half, r, tx, ty, tz, max_iterations)
+-- @treturn table cand
+function M.refine(C, px, half, cand, max_iterations)
   max_iterations = max_iterations or M.MAX_ITERATIONS
-  local C = constants(K, camera, half)
   local floor, relative = 4 * M.STEP_TOLERANCE * M.STEP_TOLERANCE, M.STEP_RELATIVE
   -- the pose P and the trial Q, each as the tag's x and y axes in the camera (columns 1 and 2
   -- of R; column 3 is their cross product) and t; A holds the normal equations at P, B a trial's
   local P, Q, A, B = pose_p, pose_q, normal_a, normal_b
-  P[1], P[2], P[3], P[4], P[5], P[6], P[7], P[8], P[9] = r[1], r[4], r[7], r[2], r[5], r[8], tx,
-    ty, tz
-  local sum = linearise(A, px, C, P)
-  if not (sum < huge) then return tx, ty, tz, huge, 1 end
+  local r = cand.r
+  P[1], P[2], P[3], P[4], P[5], P[6], P[7], P[8], P[9] = r[1], r[4], r[7], r[2], r[5], r[8],
+    cand.tx, cand.ty, cand.tz
+  local sum = linearise(A, px, C, half, P)
+  if not (sum < huge) then
+    cand.sse, cand.linearisations = huge, 1
+    return cand
+  end
   -- fresh: no trial was refused since A was computed, so the next trial is linearised at once
   -- (its equations are the next step's if it is taken); after a refusal, trials are costed
   -- only, and the one taken is linearised then
   local k, lambda, fresh = 1, 1e-6, true
   while true do
     local disp, remainder
-    lambda, disp, remainder = step(A, lambda, P, Q, C)
+    lambda, disp, remainder = step(A, lambda, P, Q, C, half)
     if not lambda then break end
     -- last: this step is negligible, or no more linearisations are allowed; or it is the first
     -- step from the start, undamped, and the step it leaves is negligible (from a start near a
@@ -391,10 +271,10 @@ function M.refine(camera, px, half, r, tx, ty, tz, max_iterations)
     local last = small or (k == 1 and lambda < 1e-3 and remainder < relative * (sum - disp))
     local s
     if last or not fresh then
-      s = residuals(px, C, Q)
+      s = residuals(px, C, half, Q)
     else
       k = k + 1
-      s = linearise(B, px, C, Q)
+      s = linearise(B, px, C, half, Q)
     end
     if s <= sum then
       for i = 1, 9 do P[i] = Q[i] end
@@ -404,7 +284,7 @@ function M.refine(camera, px, half, r, tx, ty, tz, max_iterations)
         A, B = B, A
       else
         k = k + 1
-        linearise(A, px, C, P)
+        linearise(A, px, C, half, P)
       end
       fresh = true
       if lambda > 1e-12 then lambda = lambda * 0.1 end
@@ -419,7 +299,8 @@ function M.refine(camera, px, half, r, tx, ty, tz, max_iterations)
   local ax, ay, az, bx, by, bz = P[1], P[2], P[3], P[4], P[5], P[6]
   r[1], r[4], r[7], r[2], r[5], r[8] = ax, ay, az, bx, by, bz
   r[3], r[6], r[9] = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
-  return P[7], P[8], P[9], sum, k
+  cand.tx, cand.ty, cand.tz, cand.sse, cand.linearisations = P[7], P[8], P[9], sum, k
+  return cand
 end
 
 --- The start of the other local minimum: the pose with the tag's normal reflected about the

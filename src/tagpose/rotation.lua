@@ -68,35 +68,23 @@ function M.from_quaternion(w, x, y, z, out)
   return out
 end
 
---- Axis and angle of a rotation matrix; the angle is in [0, π], the axis a unit vector
--- (`1, 0, 0` for the identity).
+--- The rotation vector (axis times angle, the angle in [0, π]) of a rotation matrix: the
+-- logarithm map, inverse of `from_rotation_vector`. A pose's covariance is over this vector:
+-- `R_true = exp([r]×) · R` gives `r = to_rotation_vector(R_true · Rᵀ)`.
 -- @tparam {number,...} r flat 3×3 rotation
--- @treturn number ax
--- @treturn number ay
--- @treturn number az
--- @treturn number angle
-function M.to_axis_angle(r)
+-- @treturn number wx
+-- @treturn number wy
+-- @treturn number wz
+function M.to_rotation_vector(r)
   local w, x, y, z = M.to_quaternion(r)
   local s = sqrt(x * x + y * y + z * z)
-  if s == 0 then return 1, 0, 0, 0 end
-  return x / s, y / s, z / s, 2 * atan2(s, w)
+  if s == 0 then return 0, 0, 0 end
+  local k = 2 * atan2(s, w) / s
+  return k * x, k * y, k * z
 end
 
---- Rotation matrix of an axis (any non-zero length) and an angle.
--- @tparam number ax
--- @tparam number ay
--- @tparam number az
--- @tparam number angle radians
--- @tparam[opt] {number,...} out array to fill
--- @treturn {number,...} flat 3×3 rotation
-function M.from_axis_angle(ax, ay, az, angle, out)
-  local n = sqrt(ax * ax + ay * ay + az * az)
-  local s = sin(0.5 * angle) / n
-  return M.from_quaternion(cos(0.5 * angle), ax * s, ay * s, az * s, out)
-end
-
---- Rotation matrix of a rotation vector (axis times angle), by Rodrigues' formula with a
--- series near zero, so small vectors keep full precision.
+--- Rotation matrix of a rotation vector (axis times angle): the exponential map `exp([w]×)`,
+-- by Rodrigues' formula with a series near zero, so small vectors keep full precision.
 -- @tparam number wx
 -- @tparam number wy
 -- @tparam number wz

@@ -57,6 +57,47 @@ local function peval(c, n, y)
   return v
 end
 
+-- The real roots of a c[3] x² + c[2] x + c[1] (c[3] not 0), ascending, into out; their count.
+local function quadratic_roots(c, out)
+  local a, b, cc = c[3], c[2], c[1]
+  local disc = b * b - 4 * a * cc
+  if disc < 0 then
+    -- a (near-)double root just lost to round-off still counts as one
+    if disc < -1e-14 * b * b then return 0 end
+    disc = 0
+  end
+  local s = sqrt(disc)
+  local t = -0.5 * (b + (b >= 0 and s or -s))
+  if t == 0 then
+    out[1] = 0
+    return 1
+  end
+  local r1, r2 = t / a, cc / t
+  if r1 > r2 then r1, r2 = r2, r1 end
+  out[1], out[2] = r1, r2
+  return 2
+end
+
+-- The one root of the degree-n polynomial c in (a, b), where it changes sign (pa its value at
+-- a; d its derivative): bisection with Newton steps where they stay inside.
+local function bracketed_root(c, d, n, a, b, pa)
+  local y = 0.5 * (a + b)
+  for _ = 1, 100 do
+    local p = peval(c, n, y)
+    if p == 0 then break end
+    if (p < 0) == (pa < 0) then a, pa = y, p else b = y end
+    local dp = peval(d, n - 1, y)
+    local ny = dp ~= 0 and y - p / dp or a
+    if not (ny > a and ny < b) then ny = 0.5 * (a + b) end
+    if abs(ny - y) <= 1e-15 * max(1, abs(y)) then
+      y = ny
+      break
+    end
+    y = ny
+  end
+  return y
+end
+
 local function poly_roots(c, n, out)
   local scale = 0
   for k = 1, n + 1 do
@@ -71,25 +112,7 @@ local function poly_roots(c, n, out)
     out[1] = -c[1] / c[2]
     return 1
   end
-  if n == 2 then
-    local a, b, cc = c[3], c[2], c[1]
-    local disc = b * b - 4 * a * cc
-    if disc < 0 then
-      -- a (near-)double root just lost to round-off still counts as one
-      if disc < -1e-14 * b * b then return 0 end
-      disc = 0
-    end
-    local s = sqrt(disc)
-    local t = -0.5 * (b + (b >= 0 and s or -s))
-    if t == 0 then
-      out[1] = 0
-      return 1
-    end
-    local r1, r2 = t / a, cc / t
-    if r1 > r2 then r1, r2 = r2, r1 end
-    out[1], out[2] = r1, r2
-    return 2
-  end
+  if n == 2 then return quadratic_roots(c, out) end
   -- degree 3 or 4: isolate by the critical points
   local d, cp = deriv[n], crit[n]
   for k = 1, n do
@@ -114,24 +137,8 @@ local function poly_roots(c, n, out)
           out[count] = lo
         end
       elseif (plo < 0) ~= (phi < 0) and phi ~= 0 then
-        -- one root in (lo, hi): bisection with Newton steps where they stay inside
-        local a, b, pa = lo, hi, plo
-        local y = 0.5 * (a + b)
-        for _ = 1, 100 do
-          local p = peval(c, n, y)
-          if p == 0 then break end
-          if (p < 0) == (pa < 0) then a, pa = y, p else b = y end
-          local dp = peval(d, n - 1, y)
-          local ny = dp ~= 0 and y - p / dp or a
-          if not (ny > a and ny < b) then ny = 0.5 * (a + b) end
-          if abs(ny - y) <= 1e-15 * max(1, abs(y)) then
-            y = ny
-            break
-          end
-          y = ny
-        end
         count = count + 1
-        out[count] = y
+        out[count] = bracketed_root(c, d, n, lo, hi, plo)
       elseif i <= nc and abs(phi) <= 1e-12 * scale * max(1, abs(hi)) ^ n then
         -- a double root at a critical point
         count = count + 1

@@ -30,8 +30,12 @@
 -- `{aw, ax, ay, az, bw, bx, by, bz, L, σ²}` (a: the returned pose's branch, b: the other).
 -- @module tagpose.track
 
+local compat = require("tagpose.compat")
+local rotation = require("tagpose.rotation")
+
 local sqrt, exp, log, acos, min, max = math.sqrt, math.exp, math.log, math.acos, math.min,
   math.max
+local is_finite = compat.is_finite
 
 local M = {}
 
@@ -85,6 +89,61 @@ function M.start(out, q1, sse1, q2, sse2)
   return out
 end
 
+local flat = {} -- scratch: a prior's rotation, flat
+local made = {} -- scratch: the state made from a prior without one
+
+-- The quaternion of a pose table (its quaternion or rotation field) into out[1..4], or nil.
+local function pose_quaternion(p, out)
+  if type(p) ~= "table" then return nil end
+  local qt = p.quaternion
+  if type(qt) == "table" and is_finite(qt.w) and is_finite(qt.x) and is_finite(qt.y)
+    and is_finite(qt.z) then
+    local n = sqrt(qt.w * qt.w + qt.x * qt.x + qt.y * qt.y + qt.z * qt.z)
+    if n > 0 then
+      out[1], out[2], out[3], out[4] = qt.w / n, qt.x / n, qt.y / n, qt.z / n
+      return out
+    end
+  end
+  local rt = p.rotation
+  if type(rt) == "table" and type(rt[1]) == "table" and type(rt[2]) == "table"
+    and type(rt[3]) == "table" then
+    rotation.from_nested(rt, flat)
+    for i = 1, 9 do
+      if not is_finite(flat[i]) then return nil end
+    end
+    out[1], out[2], out[3], out[4] = rotation.to_quaternion(flat)
+    return out
+  end
+  return nil
+end
+
+local prior_q, prior_alt = {}, {} -- scratch quaternions of a prior and its alternative
+
+--- The track state a prior pose carries (its `track`), or one made from its pose and its
+-- alternative's (whose noise is then taken from the next frame).
+-- @tparam table prior a pose table (a `tagpose.solve` result, or the user's own)
+-- @treturn {number,...} the state (the prior's own `track`, or a scratch array valid until the
+--   next call)
+-- @return nil when the prior has no usable state, quaternion or rotation
+function M.from_prior(prior)
+  local t = prior.track
+  if type(t) == "table" then
+    local ok = true
+    for i = 1, 10 do
+      if not is_finite(t[i]) then ok = false end
+    end
+    if ok and t[10] > 0 then return t end
+  end
+  local q = pose_quaternion(prior, prior_q)
+  if not q then return nil end
+  local alt = pose_quaternion(prior.alternative, prior_alt) or q
+  for i = 1, 4 do
+    made[i], made[4 + i] = q[i], alt[i]
+  end
+  made[9], made[10] = 0, nil
+  return made
+end
+
 --- Choose between this frame's candidates given the previous frame's track state.
 -- @tparam {number,...} prev the previous state (ten numbers)
 -- @tparam {number,...} q1 quaternion of the candidate with the smaller error
@@ -98,6 +157,8 @@ function M.choose(prev, q1, sse1, q2, sse2, out)
   local aw, ax, ay, az = prev[1], prev[2], prev[3], prev[4]
   local bw, bx, by, bz = prev[5], prev[6], prev[7], prev[8]
   local L, s2 = prev[9], prev[10]
+  -- a state made from a pose (`from_prior`) takes its noise from this frame
+  if s2 == nil then s2 = max(0.5 * sse1, M.NOISE_FLOOR) end
   if not q2 then q2, sse2 = q1, sse1 end
   -- which candidate continues branch a
   local c1a = closeness(q1[1], q1[2], q1[3], q1[4], aw, ax, ay, az)

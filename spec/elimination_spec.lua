@@ -1,4 +1,5 @@
-local linsolve = require("tagpose.linsolve")
+local elimination = require("support.elimination")
+local lsq = require("tagpose.lsq")
 
 -- residual max |a x - b| of the original system
 local function residual(n, a, x, b, nrhs)
@@ -22,14 +23,14 @@ local function copy(t)
   return c
 end
 
-describe("tagpose.linsolve", function()
+describe("support.elimination and tagpose.lsq.spd6()", function()
   describe("solve()", function()
     it("solves a system whose first pivot is zero (needs a row swap)", function()
       local a = { 0, 2, 1,
                   1, 1, 1,
                   2, 1, 0 }
       local b = { 5, 4, 4 } -- x = (1, 2, 1)
-      local x = assert(linsolve.solve(3, copy(a), copy(b)))
+      local x = assert(elimination.solve(3, copy(a), copy(b)))
       assert.near(1, x[1], 1e-14)
       assert.near(2, x[2], 1e-14)
       assert.near(1, x[3], 1e-14)
@@ -41,7 +42,7 @@ describe("tagpose.linsolve", function()
       local a = { eps, 1,
                   1,   1 }
       local b = { 1, 2 } -- x ~ (1, 1)
-      local x = assert(linsolve.solve(2, copy(a), copy(b)))
+      local x = assert(elimination.solve(2, copy(a), copy(b)))
       assert.near(1, x[1], 1e-15)
       assert.near(1, x[2], 1e-15)
     end)
@@ -49,7 +50,7 @@ describe("tagpose.linsolve", function()
     it("solves several right-hand sides at once", function()
       local a = { 4, -2, 1, 3, 6, -4, 2, 1, 8 }
       local b = { 1, 0, 0, 0, 1, 0, 0, 0, 1 } -- the inverse
-      local x = assert(linsolve.solve(3, copy(a), copy(b), 3))
+      local x = assert(elimination.solve(3, copy(a), copy(b), 3))
       assert.is_true(residual(3, a, x, b, 3) < 1e-14)
     end)
 
@@ -63,7 +64,7 @@ describe("tagpose.linsolve", function()
         local a, b = {}, {}
         for i = 1, 64 do a[i] = rand() end
         for i = 1, 8 do b[i] = rand() end
-        local x = assert(linsolve.solve(8, copy(a), copy(b)))
+        local x = assert(elimination.solve(8, copy(a), copy(b)))
         assert.is_true(residual(8, a, x, b) < 1e-12)
       end
     end)
@@ -72,26 +73,26 @@ describe("tagpose.linsolve", function()
       local a = { 1, 2, 3,
                   2, 4, 6,
                   1, 0, 1 }
-      local x, err = linsolve.solve(3, a, { 1, 2, 3 })
+      local x, err = elimination.solve(3, a, { 1, 2, 3 })
       assert.is_nil(x)
-      assert.equal("linsolve: matrix is singular", err)
+      assert.equal("elimination: matrix is singular", err)
     end)
 
     it("reports a matrix singular to working precision", function()
       local a = { 1, 1,
                   1, 1 + 1e-15 }
-      local x, err = linsolve.solve(2, a, { 1, 2 })
+      local x, err = elimination.solve(2, a, { 1, 2 })
       assert.is_nil(x)
-      assert.equal("linsolve: matrix is singular", err)
+      assert.equal("elimination: matrix is singular", err)
     end)
 
     it("reports the zero matrix and non-finite entries", function()
-      assert.same({ nil, "linsolve: matrix is singular" },
-        { linsolve.solve(2, { 0, 0, 0, 0 }, { 1, 1 }) })
-      assert.same({ nil, "linsolve: matrix is not finite" },
-        { linsolve.solve(2, { 1, 0, 0, 0 / 0 }, { 1, 1 }) })
-      assert.same({ nil, "linsolve: matrix is not finite" },
-        { linsolve.solve(2, { 1, 0, 0, math.huge }, { 1, 1 }) })
+      assert.same({ nil, "elimination: matrix is singular" },
+        { elimination.solve(2, { 0, 0, 0, 0 }, { 1, 1 }) })
+      assert.same({ nil, "elimination: matrix is not finite" },
+        { elimination.solve(2, { 1, 0, 0, 0 / 0 }, { 1, 1 }) })
+      assert.same({ nil, "elimination: matrix is not finite" },
+        { elimination.solve(2, { 1, 0, 0, math.huge }, { 1, 1 }) })
     end)
   end)
 
@@ -128,7 +129,7 @@ describe("tagpose.linsolve", function()
         local b = {}
         for i = 1, 6 do b[i] = rand() end
         local u = upper(a)
-        local x = { linsolve.spd6(u[1], u[2], u[3], u[4], u[5], u[6], u[7], u[8], u[9], u[10],
+        local x = { lsq.spd6(u[1], u[2], u[3], u[4], u[5], u[6], u[7], u[8], u[9], u[10],
           u[11], u[12], u[13], u[14], u[15], u[16], u[17], u[18], u[19], u[20], u[21],
           b[1], b[2], b[3], b[4], b[5], b[6]) }
         assert.equal(6, #x)
@@ -141,7 +142,7 @@ describe("tagpose.linsolve", function()
       local a = { 4, 1, 0, 2e6, 0, 0,  1, 3, 0, 0, 0, 0,  0, 0, 2, 0, 0, 0,
                   2e6, 0, 0, 5e12, 0, 0,  0, 0, 0, 0, 1, 0,  0, 0, 0, 0, 0, 1 }
       local u = upper(a)
-      local x = { linsolve.spd6(u[1], u[2], u[3], u[4], u[5], u[6], u[7], u[8], u[9], u[10],
+      local x = { lsq.spd6(u[1], u[2], u[3], u[4], u[5], u[6], u[7], u[8], u[9], u[10],
         u[11], u[12], u[13], u[14], u[15], u[16], u[17], u[18], u[19], u[20], u[21],
         1, 2, 3, 4e6, 5, 6) }
       assert.equal(6, #x)
@@ -149,11 +150,11 @@ describe("tagpose.linsolve", function()
     end)
 
     it("reports a matrix that is not positive definite", function()
-      assert.is_nil(linsolve.spd6(1, 0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 1, 0, 0,
+      assert.is_nil(lsq.spd6(1, 0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 1, 0, 0,
         1, 1, 1, 1, 1, 1))
-      assert.is_nil(linsolve.spd6(1, 2, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 1, 0, 1,
+      assert.is_nil(lsq.spd6(1, 2, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 1, 0, 1,
         1, 1, 1, 1, 1, 1))
-      assert.is_nil(linsolve.spd6(0 / 0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 1, 0, 1,
+      assert.is_nil(lsq.spd6(0 / 0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 1, 0, 1,
         1, 1, 1, 1, 1, 1))
     end)
   end)
@@ -164,16 +165,16 @@ describe("tagpose.linsolve", function()
                   2, 5, 1,
                   0.4, 1, 3 }
       local b = { 1, 2, 3 }
-      local x = assert(linsolve.cholesky(3, copy(a), copy(b)))
+      local x = assert(elimination.cholesky(3, copy(a), copy(b)))
       assert.is_true(residual(3, a, x, b) < 1e-14)
     end)
 
     it("reports a matrix that is not positive definite", function()
-      local x, err = linsolve.cholesky(2, { 1, 2, 2, 1 }, { 1, 1 })
+      local x, err = elimination.cholesky(2, { 1, 2, 2, 1 }, { 1, 1 })
       assert.is_nil(x)
-      assert.equal("linsolve: matrix is not positive definite", err)
-      assert.same({ nil, "linsolve: matrix is not positive definite" },
-        { linsolve.cholesky(2, { 1, 1, 1, 1 }, { 1, 1 }) })
+      assert.equal("elimination: matrix is not positive definite", err)
+      assert.same({ nil, "elimination: matrix is not positive definite" },
+        { elimination.cholesky(2, { 1, 1, 1, 1 }, { 1, 1 }) })
     end)
   end)
 end)

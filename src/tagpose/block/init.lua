@@ -1,0 +1,343 @@
+--- Blocks: the pose of cubes from the tags on their faces.
+--
+-- A block is a cube of side `block_size` carrying a tag (black square of side `tag_size`) on
+-- its faces. Its frame has the origin at the cube's centre and the axes along the face normals
+-- (`tagpose.cube` lists the faces and the tag frame on each). By default every face carries a
+-- tag of any id, centred on the face, its z axis pointing into the block; the faces cannot be
+-- told apart, so a block's rotation is defined up to the cube's 24 symmetries and a canonical
+-- one is returned. With `options.faces` (tag id → face) the block frame is absolute.
+--
+-- The stages, per frame, each a module of its own:
+--
+-- 1. `tagpose.block.options`: the options, read once;
+-- 2. `tagpose.block.frame`: every detection solved alone by the single-tag pipeline
+--    (`tagpose.pipeline`): one or two candidate poses (the planar ambiguity), each implying a
+--    block centre and rotation; the frame's corner noise;
+-- 3. `tagpose.block.group` and `tagpose.block.fit`: from every candidate as a seed, the free
+--    detections that agree with it form a hypothesis, fitted jointly over all its corners and
+--    kept together only while the fit is consistent with the members' own fits (an F-test);
+--    the best hypothesis (most members, then the lowest error) becomes a block, its tags leave
+--    the pool, and the rest are grouped again; a block seen with one face keeps both
+--    candidates;
+-- 4. `tagpose.block.scene`: with `up = "auto"` or `floor = "auto"`, what the blocks seen with
+--    two or more faces show of up and the floor, for those seen with one;
+-- 5. `tagpose.block.identity`: ids and frames across frames (`options.previous`), or the
+--    canonical frame.
+--
+-- Lengths are in the unit of `tag_size`, angles in radians, errors in pixels.
+-- @module tagpose.block
+
+local compat = require("tagpose.compat")
+local args = require("tagpose.args")
+local camera_model = require("tagpose.camera")
+local rotation = require("tagpose.rotation")
+local cube = require("tagpose.cube")
+local read_options = require("tagpose.block.options").read
+local frame = require("tagpose.block.frame")
+local group = require("tagpose.block.group")
+local fit = require("tagpose.block.fit")
+local scene = require("tagpose.block.scene")
+local identity = require("tagpose.block.identity")
+
+local is_finite, is_positive, describe = compat.is_finite, args.is_positive, args.describe
+local sqrt, huge = math.sqrt, math.huge
+local mul, t_mul = rotation.multiply, rotation.transpose_multiply
+
+local M = {}
+
+--- Two blocks whose centres are closer than this (× block_size) are one cube: the later found
+-- (fewer faces, or a larger error) is dropped and its tags reported in `skipped`.
+M.OVERLAP = 0.5
+
+local function arg_error(n, message)
+  args.raise(n, "solve", message, 3)
+end
+
+-- The best hypothesis of two or more tags among the free detections (most members, then the
+-- lowest cost), or nil. Hypotheses are cached by seed while all their tags are free, and not
+-- fitted twice where a fitted one already gives their start.
+local function best_hypothesis(fr, free, links, cache, fitted)
+  local dets, faces = fr.dets, fr.settings.faces
+  local best = nil
+  for s = 1, #dets do
+    if free[s] then
+      for a = 1, #dets[s].cands do
+        local key = 2 * s + a
+        local h = cache[key]
+        if not (h and group.all_free(h.gated, free)) then
+          h = group.seeded(fr, s, a, free, links)
+          if #h.gated > 1 then
+            local twin = group.twin_of(h, fitted, faces)
+            if twin then
+              h = twin
+            else
+              fit.hypothesis(fr, h)
+              fitted[#fitted + 1] = h
+            end
+          end
+          cache[key] = h
+        end
+        if #h.members > 1 and h.cost < huge and group.better(h, best) then best = h end
+      end
+    end
+  end
+  return best
+end
+
+-- The free detection with the smallest single-tag error.
+local function best_single(dets, free)
+  local s = nil
+  for k = 1, #dets do
+    if free[k] and (not s or dets[k].best_sse < dets[s].best_sse) then s = k end
+  end
+  return s
+end
+
+-- The frame's blocks, in the order found: `{h = hypothesis, other = the other pose of a
+-- one-face block or nil, how = what decided its orientation}` each.
+local function find(fr)
+  local dets = fr.dets
+  local free, remaining = {}, #dets
+  for s = 1, #dets do free[s] = true end
+  local found, cache, fitted = {}, {}, {}
+  local links = group.links(fr)
+  local inferred = not (fr.settings.auto_up or fr.settings.auto_floor)
+  while remaining > 0 do
+    local h, other, how = best_hypothesis(fr, free, links, cache, fitted), nil, "faces"
+    if not h and not inferred then
+      -- every block of two or more faces is found: what they show of the scene
+      scene.infer(fr, found)
+      inferred = true
+    elseif not h then
+      -- no two tags make a block: each free tag is one (the best-fitting first)
+      local s = best_single(dets, free)
+      h, other, how = fit.single(fr, s)
+      if not h then
+        free[s] = false
+        remaining = remaining - 1
+        fr.skipped[#fr.skipped + 1] = { index = dets[s].index,
+          reason = "block: no pose puts the tag in front of the camera" }
+      end
+    end
+    if h then
+      for m = 1, #h.members do
+        free[h.members[m]] = false
+        remaining = remaining - 1
+      end
+      found[#found + 1] = { h = h, other = other, how = how }
+    end
+  end
+  return found
+end
+
+local function finite_block(r, x, y, z, err)
+  local s = x + y + z + err + r[1] + r[2] + r[3] + r[4] + r[5] + r[6] + r[7] + r[8] + r[9]
+  return s == s and s > -huge and s < huge
+end
+
+-- The blocks found that are finite and not where an earlier one is (found in order of faces,
+-- then error: a later block within OVERLAP of an earlier one is a tag that did not fit it, such
+-- as the same tag detected twice); the others' tags go to `skipped`.
+local function keep(fr, found)
+  local dets, blocks = fr.dets, {}
+  local overlap2 = (M.OVERLAP * fr.block_size) ^ 2
+  for _, f in ipairs(found) do
+    local h = f.h
+    local n = #h.members
+    local err = sqrt(h.sse / (4 * n))
+    local reason = nil
+    if not finite_block(h.r, h.x, h.y, h.z, err) then
+      reason = "block: the fit is not finite"
+    else
+      for k = 1, #blocks do
+        local o = blocks[k].h
+        if (o.x - h.x) ^ 2 + (o.y - h.y) ^ 2 + (o.z - h.z) ^ 2 < overlap2 then
+          local list = {}
+          for m = 1, #o.members do list[m] = dets[o.members[m]].index end
+          reason = "block: the tag does not fit the block of detection(s) "
+            .. table.concat(list, ", ") .. " in its place"
+        end
+      end
+    end
+    if reason then
+      for m = 1, n do
+        fr.skipped[#fr.skipped + 1] = { index = dets[h.members[m]].index, reason = reason }
+      end
+    else
+      blocks[#blocks + 1] = f
+      f.err = err
+    end
+  end
+  return blocks
+end
+
+local function pose_table(r, x, y, z, err)
+  local w, qx, qy, qz = rotation.to_quaternion(r)
+  return {
+    position = { x = x, y = y, z = z },
+    rotation = rotation.to_nested(r),
+    quaternion = { w = w, x = qx, y = qy, z = qz },
+    error = err,
+  }
+end
+
+-- orders for table.sort (module-level: a closure made per call stops LuaJIT's compiler)
+local function nearer(a, b)
+  return a.h.x ^ 2 + a.h.y ^ 2 + a.h.z ^ 2 < b.h.x ^ 2 + b.h.y ^ 2 + b.h.z ^ 2
+end
+local function smaller_id(a, b) return a.id < b.id end
+
+local out_r, face_r = {}, {} -- scratch rotations
+
+-- One block's public table: its pose in the returned frame, tags and faces, the other pose of
+-- a one-face block.
+local function block_table(fr, f, prev)
+  local h, dets = f.h, fr.dets
+  local r = identity.output_rotation(h.r, h.x, h.y, h.z, fr, prev, out_r)
+  local b = pose_table(r, h.x, h.y, h.z, f.err)
+  b.raw_rotation = rotation.to_nested(h.r)
+  local tags, tag_faces = {}, {}
+  -- each tag's face in the returned frame: G' = rᵀ·raw·G
+  local rel = t_mul(r, h.r, {})
+  for m = 1, #h.members do
+    tags[m] = dets[h.members[m]].index
+    tag_faces[m] = cube.face_of(mul(rel, h.g[m], face_r))
+  end
+  b.tags, b.tag_faces, b.faces, b.orientation = tags, tag_faces, #h.members, f.how
+  if f.other then
+    local o = f.other
+    local orr = identity.output_rotation(o.r, o.x, o.y, o.z, fr, prev, out_r)
+    local oerr = sqrt(o.sse / 4)
+    if finite_block(orr, o.x, o.y, o.z, oerr) then
+      b.alternative = pose_table(orr, o.x, o.y, o.z, oerr)
+    end
+  end
+  return b
+end
+
+-- The returned array: the blocks (nearest first, or by id when tracking) and the frame's
+-- fields.
+local function results(fr, blocks)
+  local previous = fr.settings.previous
+  local match, next_id = {}, 1
+  if previous then
+    next_id = identity.next_id(fr.settings)
+    match = identity.match(blocks, previous, identity.TRACK_GATE * fr.block_size)
+  else
+    table.sort(blocks, nearer)
+  end
+  local out = {}
+  for i, f in ipairs(blocks) do
+    local prev = match[i] and previous[match[i]]
+    local b = block_table(fr, f, prev)
+    if prev and is_finite(prev.id) then
+      b.id = prev.id
+    else
+      b.id = next_id
+      next_id = next_id + 1
+    end
+    out[i] = b
+  end
+  if previous then table.sort(out, smaller_id) end
+  out.skipped = fr.skipped
+  out.next_id = next_id
+  out.noise = { sse = fr.noise_sse, dof = fr.noise_dof }
+  -- the up and floor used (given, or found with "auto"), nil for none
+  local up = fr.up
+  out.up = up and { x = up[1], y = up[2], z = up[3] } or nil
+  out.floor = fr.floor
+  return out
+end
+
+--- Solve the poses of the blocks whose tags one frame shows.
+-- @tparam {table,...} detections array of `{id = n, corners = {...}}`, `corners` as
+--   `tagpose.solve` takes them (four points `{u, v}` or `{x =, y =}` in detection order, pixels)
+-- @tparam table camera `{fx =, fy =, cx =, cy =}` in pixels, optionally `distortion` and
+--   `model` (see `tagpose.camera`)
+-- @tparam number tag_size side of the tags' black squares (> 0); lengths come out in its unit
+-- @tparam number block_size side of the cube (> `tag_size`)
+-- @tparam[opt] table options
+--
+--   - `up`: a vector `{x =, y =, z =}` (or `{x, y, z}`) in the camera frame pointing up
+--     (against gravity), when known: a block resting on a face has a face axis along it, which
+--     decides between the two poses of a block seen with one face and steadies every fit; it
+--     also sets the canonical z. Default: none (and `(0, -1, 0)` for the canonical choice).
+--     `"auto"`: when the frame has blocks seen with two or more faces, up is their face axis
+--     nearest the camera's -y, used for the blocks seen with one face (this assumes that all
+--     the blocks in view rest on a face, on the floor or on each other, and that the camera is
+--     rolled and pitched by less than 45 degrees);
+--   - `up_tolerance`: standard deviation of a block's tilt from `up`, radians (default 2°);
+--   - `floor` (needs `up`): the height of the camera's centre above the floor the blocks rest
+--     on, when known: a block resting on the floor or on other blocks has its centre at
+--     `block_size/2 + k·block_size` above it, which fixes the depth a single tag measures
+--     poorly. It helps only when known to about a millimetre: a height error moves a centre
+--     along the line of sight by the error over the sine of the ray's angle below horizontal.
+--     A block further than 0.3 block from every level is left free;
+--     `"auto"` (with `up`, a vector or `"auto"`): when the frame has blocks seen with two or
+--     more faces, the floor is where they rest (each at the level nearest its height above the
+--     lowest), used for the blocks seen with one face and, for each of those blocks, the floor
+--     the others show (this assumes that all the blocks in view rest on the floor or on each
+--     other);
+--   - `floor_tolerance`: standard deviation of a resting centre's height from its level, in
+--     length units (default `block_size / 50`; `block_size / 100` with `floor = "auto"`);
+--   - `previous`: the blocks returned for the previous frame: a block found again keeps its
+--     `id` and the symmetric frame nearest its previous rotation, and a one-face block keeps
+--     the candidate that continues a decided orientation;
+--   - `faces`: a table tag id → face (`"+x"`, `"-x"`, `"+y"`, `"-y"`, `"+z"`, `"-z"`, or the
+--     nested 3×3 tag → block rotation, one of the cube's) when the faces can be told apart: the
+--     block frame is then absolute and detections with other ids are skipped;
+--   - `max_iterations`: bound on the linearisations of one joint fit (default 20).
+-- @treturn {table,...} blocks, nearest first (sorted by `id` when tracking), each
+--   `{id =, position = {x, y, z}, rotation = {{...}, {...}, {...}}, quaternion = {w, x, y, z},
+--   raw_rotation = {{...}, ...}, error = px, tags = {i, ...}, faces = k, tag_faces = {"+x",
+--   ...}, orientation = "faces"|"up"|"track"|"error", alternative = {position, rotation,
+--   quaternion, error} or nil}`; the array's field `skipped` lists the detections not used,
+--   `{index = i, reason = string}`, `next_id` the id a new block would take, and `noise`
+--   the corner noise evidence `{sse =, dof =}` (px², degrees of freedom) carried to the next
+--   frame, `up` (`{x =, y =, z =}`) and `floor` the up and floor used (given or found with
+--   `"auto"`; nil when none)
+-- @return nil, string when no detection gives a tag pose (the message says why)
+-- @raise `bad argument #n to 'solve' (...)` when an argument has the wrong type or range
+--   (`detections` not a table, the camera, the sizes, the options; a malformed detection
+--   inside the array is skipped instead, with its reason)
+-- @usage
+-- local blocks = tagpose.block.solve({{id = 0, corners = c1}, {id = 0, corners = c2}},
+--   camera, 0.024, 0.055, {up = {x = 0, y = -0.9, z = -0.4}})
+-- for _, b in ipairs(blocks) do print(b.id, b.position.x, b.position.y, b.position.z) end
+function M.solve(detections, camera, tag_size, block_size, options)
+  if type(detections) ~= "table" then
+    arg_error(1, "array of detections expected, got " .. type(detections))
+  end
+  local problem = camera_model.check(camera)
+  if problem then arg_error(2, problem) end
+  if not is_positive(tag_size) then
+    arg_error(3, "positive number expected for tag_size, got " .. describe(tag_size))
+  end
+  if not is_positive(block_size) then
+    arg_error(4, "positive number expected for block_size, got " .. describe(block_size))
+  end
+  if not (block_size > tag_size) then
+    arg_error(4, "block_size must exceed tag_size, got " .. block_size .. " <= " .. tag_size)
+  end
+  local settings
+  settings, problem = read_options(options)
+  if not settings then arg_error(5, problem) end
+  local fr = frame.new(settings, detections, camera, tag_size, block_size)
+  if #fr.dets == 0 and fr.first_reason then
+    return nil, "block: no detection gives a tag pose (" .. fr.first_reason .. ")"
+  end
+  return results(fr, keep(fr, find(fr)))
+end
+
+-- The driver loops over a few tags and blocks branch a lot and call much: on LuaJIT their
+-- traces outgrow the machine-code area (512 KB by default), which is then flushed and refilled
+-- every hundred frames or so. Left to the interpreter (the kernels they call still compile
+-- their own loops) they run about three times faster there. Whether the VM can do that is
+-- compat's to know (`compat.interpret`; a no-op on PUC Lua).
+compat.interpret(M.solve)
+compat.interpret(find)
+compat.interpret(best_hypothesis)
+compat.interpret(keep)
+compat.interpret(results)
+
+return M

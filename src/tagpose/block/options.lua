@@ -1,0 +1,198 @@
+--- Blocks: the options of `tagpose.block.solve`, read once into a settings record that nothing
+-- writes afterwards.
+--
+-- The record: `faces` (tag id → flat face rotation `R_f`, or nil), `up` (a unit vector
+-- `{x, y, z}` as an array, or nil), `auto_up`, `up_tolerance` (radians), `floor` (or nil),
+-- `auto_floor`, `floor_tolerance` (or nil for the default), `max_iterations`, `previous` (the
+-- previous frame's blocks as records `{x, y, z, r, id, decided}`, or nil), `next_id`, and the
+-- noise evidence carried from the previous frame, `noise_sse` and `noise_dof` (or nil).
+-- @module tagpose.block.options
+
+local compat = require("tagpose.compat")
+local args = require("tagpose.args")
+local rotation = require("tagpose.rotation")
+local cube = require("tagpose.cube")
+
+local is_finite, is_positive, describe = compat.is_finite, args.is_positive, args.describe
+local sqrt, rad = math.sqrt, math.rad
+local ROTATIONS, FACES = cube.ROTATIONS, cube.FACES
+
+local M = {}
+
+--- Default standard deviation (radians) of a block's tilt from `options.up`.
+M.UP_TOLERANCE = rad(2)
+--- Default bound on the linearisations of one joint fit.
+M.MAX_ITERATIONS = 20
+
+-- A direction {x, y, z} or {1, 2, 3}, made unit; or nil and the misuse.
+local function read_direction(v, name)
+  if type(v) ~= "table" then
+    return nil, name .. ": table {x =, y =, z =} expected, got " .. type(v)
+  end
+  local x, y, z = v.x, v.y, v.z
+  if x == nil then x, y, z = v[1], v[2], v[3] end
+  if not (is_finite(x) and is_finite(y) and is_finite(z)) then
+    return nil, name .. ": three finite numbers expected"
+  end
+  local n = sqrt(x * x + y * y + z * z)
+  if not (n > 0) then return nil, name .. ": non-zero vector expected" end
+  return { x / n, y / n, z / n }
+end
+
+-- A flat rotation from a nested one when it is one of the cube's rotations; or nil.
+local function cube_rotation(m)
+  if type(m) ~= "table" then return nil end
+  local flat = {}
+  for i = 1, 3 do
+    local row = m[i]
+    if type(row) ~= "table" then return nil end
+    for j = 1, 3 do
+      if not is_finite(row[j]) then return nil end
+      flat[(i - 1) * 3 + j] = row[j]
+    end
+  end
+  local k, angle = cube.nearest(flat)
+  if angle > 1e-6 then return nil end
+  return ROTATIONS[k]
+end
+
+-- options.faces: id → face name or nested cube rotation; as id → flat R_f. Or nil, misuse.
+local function read_faces(faces)
+  local out = {}
+  for id, f in pairs(faces) do
+    if type(f) == "string" then
+      if not FACES[f] then
+        return nil, "options.faces[" .. tostring(id) .. "]: face '+x', '-x', '+y', '-y', '+z' "
+          .. "or '-z' expected, got string " .. f
+      end
+      out[id] = FACES[f].rotation
+    else
+      local r = cube_rotation(f)
+      if not r then
+        return nil, "options.faces[" .. tostring(id) .. "]: face name or 3x3 rotation of the "
+          .. "cube (the tag frame in the block frame) expected"
+      end
+      out[id] = r
+    end
+  end
+  return out
+end
+
+-- The rotation of a previous block (its rotation, else its quaternion), flat; or nil.
+local function previous_rotation(b)
+  local r
+  local m = b.rotation
+  if type(m) == "table" and type(m[1]) == "table" and type(m[2]) == "table"
+    and type(m[3]) == "table" then
+    r = rotation.from_nested(m)
+    for k = 1, 9 do
+      if not is_finite(r[k]) then r = nil break end
+    end
+    if r then return r end
+  end
+  local q = b.quaternion
+  if type(q) == "table" and is_finite(q.w) and is_finite(q.x) and is_finite(q.y)
+    and is_finite(q.z) and q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z > 0 then
+    return rotation.from_quaternion(q.w, q.x, q.y, q.z)
+  end
+  return nil
+end
+
+-- The previous frame's blocks: an array of {position, rotation or quaternion, id, ...}.
+local function read_previous(previous)
+  if type(previous) ~= "table" then
+    return nil, "options.previous: array of blocks expected, got " .. type(previous)
+  end
+  local out = {}
+  for i = 1, #previous do
+    local b = previous[i]
+    local p = type(b) == "table" and b.position
+    if type(p) ~= "table" or not (is_finite(p.x) and is_finite(p.y) and is_finite(p.z)) then
+      return nil, "options.previous[" .. i .. "]: block with a finite position expected"
+    end
+    local r = previous_rotation(b)
+    if not r then
+      return nil, "options.previous[" .. i .. "]: block with a finite rotation expected"
+    end
+    out[i] = { x = p.x, y = p.y, z = p.z, r = r, id = b.id,
+      decided = b.orientation ~= nil and b.orientation ~= "error" }
+  end
+  return out, previous.next_id
+end
+
+-- the scalar options: name, check, what the check expects
+local SCALAR_OPTIONS = {
+  "up_tolerance", is_positive, "positive number",
+  "floor", is_finite, "finite number",
+  "floor_tolerance", is_positive, "positive number",
+  "max_iterations", args.is_count, "positive integer",
+}
+
+-- options.previous and the noise it carries, into the settings s; or nil and the misuse.
+local function read_tracking(s, previous)
+  local problem
+  s.previous, problem = read_previous(previous)
+  if not s.previous then return nil, problem end
+  s.next_id = problem
+  local noise = previous.noise
+  if noise ~= nil then
+    if type(noise) ~= "table" or not (is_finite(noise.sse) and noise.sse >= 0
+      and is_finite(noise.dof) and noise.dof >= 0) then
+      return nil, "options.previous.noise: {sse =, dof =} (finite, >= 0) expected"
+    end
+    s.noise_sse, s.noise_dof = noise.sse, noise.dof
+  end
+  return s
+end
+
+--- Read the options of `tagpose.block.solve`.
+-- @tparam any options the caller's options (or nil)
+-- @treturn table the settings record (see the module's header)
+-- @return nil, string describing the misuse
+function M.read(options)
+  local s = { up_tolerance = M.UP_TOLERANCE, max_iterations = M.MAX_ITERATIONS,
+    auto_up = false, auto_floor = false }
+  if options == nil then return s end
+  if type(options) ~= "table" then return nil, "options table expected, got " .. type(options) end
+  local problem
+  if options.up == "auto" then
+    s.auto_up = true
+  elseif options.up ~= nil then
+    s.up, problem = read_direction(options.up, "options.up")
+    if not s.up then return nil, problem .. " (or 'auto')" end
+  end
+  if options.faces ~= nil then
+    if type(options.faces) ~= "table" then
+      return nil, "options.faces: table (tag id -> face) expected, got " .. type(options.faces)
+    end
+    s.faces, problem = read_faces(options.faces)
+    if not s.faces then return nil, problem end
+  end
+  if options.previous ~= nil then
+    local ok
+    ok, problem = read_tracking(s, options.previous)
+    if not ok then return nil, problem end
+  end
+  for i = 1, #SCALAR_OPTIONS, 3 do
+    local name, ok, what = SCALAR_OPTIONS[i], SCALAR_OPTIONS[i + 1], SCALAR_OPTIONS[i + 2]
+    local v = options[name]
+    if name == "floor" and v == "auto" then
+      s.auto_floor, v = true, nil
+    elseif name == "floor" and v ~= nil then
+      what = what .. " (or 'auto')"
+    end
+    if v ~= nil then
+      if not ok(v) then
+        return nil, "options." .. name .. ": " .. what .. " expected, got " .. describe(v)
+      end
+      s[name] = v
+    end
+  end
+  if s.floor and not s.up then return nil, "options.floor: needs options.up (a vector)" end
+  if s.auto_floor and not (s.up or s.auto_up) then
+    return nil, "options.floor: 'auto' needs options.up (a vector or 'auto')"
+  end
+  return s
+end
+
+return M
