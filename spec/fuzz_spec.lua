@@ -173,6 +173,7 @@ describe("fuzzing", function()
     local seed = 4711
     local rng = geometry.rng(seed)
     local u = rng.uniform
+    local accepted = 0
     for case = 1, 20000 do
       local camera
       if u() < 0.7 then
@@ -196,10 +197,24 @@ describe("fuzzing", function()
         local d = sqrt((bx - xd) ^ 2 + (by - yd) ^ 2)
         assert.is_true(d <= 1e-12 * (1 + math.abs(xd) + math.abs(yd)),
           ("%s: residual %.3g"):format(label, d))
+        -- and it is the camera's inverse, reached from the centre without a fold: along the
+        -- ray to it the distorted point moves steadily away from the centre
+        accepted = accepted + 1
+        local last = 0
+        for k = 1, 64 do
+          local s = k / 64
+          local px, py = geometry.distort(camera, s * x, s * y)
+          local r = px * xd + py * yd
+          if not (r > last) then
+            error(("%s: the map folds at %.3f of the way to (%.6g, %.6g)"):format(label, s, x, y))
+          end
+          last = r
+        end
       else
         assert.truthy(tostring(y):match("^camera: "), label .. ": " .. tostring(y))
       end
     end
+    assert.is_true(accepted > 5000, accepted .. " inversions accepted")
   end)
   it("tagpose.block.solve survives 3000 hostile frames", function()
     local faces = require("support.faces")

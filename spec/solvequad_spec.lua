@@ -156,20 +156,5 @@ describe("tagpose.solvequad", function()
       assert.is_true(seen["1.000000,0.000000"] and seen["-1.000000,0.000000"]
         and seen["0.000000,-1.000000"] or false)
     end)
-
-    it("finds the real roots of quartics", function()
-      local out = {}
-      -- (y-1)(y-2)(y-3)(y-4) = y^4 - 10y^3 + 35y^2 - 50y + 24
-      local n = solvequad.poly_roots({ 24, -50, 35, -10, 1 }, 4, out)
-      assert.equal(4, n)
-      for i = 1, 4 do assert.near(i, out[i], 1e-12) end
-      -- (y² + 1)(y - 1)(y + 2) = y^4 + y^3 - y^2 + y - 2
-      n = solvequad.poly_roots({ -2, 1, -1, 1, 1 }, 4, out)
-      assert.equal(2, n)
-      assert.near(-2, out[1], 1e-12)
-      assert.near(1, out[2], 1e-12)
-      -- no real root: y^4 + 1
-      assert.equal(0, solvequad.poly_roots({ 1, 0, 0, 0, 1 }, 4, out))
-    end)
   end)
 end)

@@ -11,6 +11,12 @@ local is_finite = compat.is_finite
 
 local M = {}
 
+-- a key that is not a string, for a message
+local function describe_key(k)
+  if type(k) == "number" then return "[" .. tostring(k) .. "]" end
+  return "(" .. type(k) .. ")"
+end
+
 --- A short description of a value for an error message: `number -2`, `string abc`, `nil`.
 -- @tparam any v
 -- @treturn string
@@ -34,6 +40,26 @@ function M.is_count(v)
   return is_finite(v) and v >= 1 and v == math.floor(v)
 end
 
+--- Sizes (tag sides, block sides) below this are not a length in any unit...
+M.MIN_SIZE = 1e-12
+--- ... nor above this.
+M.MAX_SIZE = 1e12
+
+--- Check a size argument (`tag_size`, `block_size`): a positive number within
+-- `MIN_SIZE..MAX_SIZE`.
+-- @tparam any v
+-- @tparam string name the argument's name for the message
+-- @treturn string|nil what is wrong, or nil
+function M.check_size(v, name)
+  if not M.is_positive(v) then
+    return "positive number expected for " .. name .. ", got " .. M.describe(v)
+  end
+  if not (v >= M.MIN_SIZE and v <= M.MAX_SIZE) then
+    return ("%s between %g and %g expected (in the unit the poses come out in), got %s")
+      :format(name, M.MIN_SIZE, M.MAX_SIZE, M.describe(v))
+  end
+end
+
 --- Read four corners (`{u, v}` or `{x = u, y = v}` each) into the flat array `out`
 -- (`{u1, v1, ..., u4, v4}`).
 -- @tparam any corners
@@ -44,7 +70,12 @@ function M.read_corners(corners, out)
   if type(corners) ~= "table" then
     return false, "table of four corners expected, got " .. type(corners)
   end
-  if #corners ~= 4 then return false, "four corners expected, got " .. #corners end
+  -- counted by indexing, not `#`: a table's own `__len` may say anything
+  local n = 0
+  while n < 1000 and corners[n + 1] ~= nil do n = n + 1 end
+  if n ~= 4 then
+    return false, "four corners expected, got " .. (n == 1000 and "1000 or more" or tostring(n))
+  end
   local bad = true
   for i = 1, 4 do
     local c = corners[i]
@@ -60,9 +91,78 @@ function M.read_corners(corners, out)
     end
     -- finite exactly when u - u is 0 (NaN and ±inf give NaN)
     if bad == true and not (u - u == 0 and v - v == 0) then bad = i end
-    out[2 * i - 1], out[2 * i] = u, v
+    -- as floats: integer pixels near math.mininteger would wrap around in u - cx (Lua 5.3+)
+    out[2 * i - 1], out[2 * i] = u + 0.0, v + 0.0
   end
   return bad
+end
+
+-- Levenshtein distance of two short strings, with an early exit above `cap`.
+local function distance(a, b, cap)
+  local la, lb = #a, #b
+  if math.abs(la - lb) > cap then return cap + 1 end
+  local prev, cur = {}, {}
+  for j = 0, lb do prev[j] = j end
+  for i = 1, la do
+    cur[0] = i
+    local ca = a:byte(i)
+    for j = 1, lb do
+      local cost = ca == b:byte(j) and 0 or 1
+      local v = prev[j - 1] + cost
+      if prev[j] + 1 < v then v = prev[j] + 1 end
+      if cur[j - 1] + 1 < v then v = cur[j - 1] + 1 end
+      cur[j] = v
+    end
+    prev, cur = cur, prev
+  end
+  return prev[lb]
+end
+
+--- The message for a key that a table does not take, with the likely intended key: the same
+-- key in another case, or one at most two edits away.
+-- @tparam any key the unknown key
+-- @tparam {string,...} allowed the keys the table takes
+-- @tparam string where the table's name in messages (`options`, `camera.distortion`)
+-- @tparam[opt] table misplaced key -> where such a key belongs
+-- @treturn string
+function M.unknown_key_message(key, allowed, where, misplaced)
+  local name = type(key) == "string" and key or describe_key(key)
+  local head = where .. "." .. name .. ": unknown key"
+  if type(key) ~= "string" then
+    return where .. ": unknown key " .. name .. " (keys are " .. table.concat(allowed, ", ") .. ")"
+  end
+  if misplaced and misplaced[key] then
+    return head .. " (did you mean " .. misplaced[key] .. "?)"
+  end
+  local best, best_d = nil, 3
+  for _, a in ipairs(allowed) do
+    local d = a:lower() == key:lower() and 0 or distance(a, key, 2)
+    -- a known key with something added or cut off (`prior_pose`, `max_iter`)
+    if d > 2 and #key >= 3 and #a >= 3 and (key:sub(1, #a) == a or a:sub(1, #key) == key) then
+      d = 2
+    end
+    if d < best_d then best, best_d = a, d end
+  end
+  if best then return head .. " (did you mean '" .. best .. "'?)" end
+  return head .. " (known keys: " .. table.concat(allowed, ", ") .. ")"
+end
+
+--- The first key of a table that is not among the allowed ones, as a message; nil when every
+-- key is allowed.
+-- @tparam table t
+-- @tparam {string,...} allowed
+-- @tparam string where the table's name in messages
+-- @tparam[opt] table misplaced key -> where such a key belongs
+-- @treturn string|nil
+function M.unknown_keys(t, allowed, where, misplaced)
+  for k in pairs(t) do
+    local known = false
+    for i = 1, #allowed do
+      if k == allowed[i] then known = true end
+    end
+    if not known then return M.unknown_key_message(k, allowed, where, misplaced) end
+  end
+  return nil
 end
 
 --- Raise `bad argument #n to 'fname' (message)`.

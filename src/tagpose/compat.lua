@@ -11,6 +11,17 @@ local M = {}
 -- argument, so `math.atan2` must come first).
 M.atan2 = math.atan2 or math.atan
 
+local atan2 = M.atan2
+
+--- One-argument arc tangent, as `atan2(y, 1)` on every VM: Lua 5.3 and 5.4's `math.atan(y)`
+-- is that, 5.1's and LuaJIT's is C's `atan(y)`, which may differ from it in the last bit.
+-- The same bits for the same input everywhere.
+-- @tparam number y
+-- @treturn number radians
+function M.atan(y)
+  return atan2(y, 1)
+end
+
 local setfenv, loadstring = setfenv, loadstring
 
 --- Compile Lua source text as a chunk whose globals are the table `env` (text only, never

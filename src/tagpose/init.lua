@@ -36,12 +36,17 @@ local state = {} -- tracking state of this frame, when the result has none to fi
 local qa, qb = {}, {} -- the candidates' quaternions, as the tracker takes them
 local spare = setmetatable({}, { __mode = "k" }) -- into -> an alternative table to reuse
 
+-- the options solve takes
+local OPTIONS = { "method", "prior", "into", "tolerance", "max_iterations" }
+
 -- Read the options; or nil and a description of the misuse.
 local function read_options(options)
   if options == nil then
     return "refined", M.REFINED_TOLERANCE, solvequad.MAX_ITERATIONS
   end
   if type(options) ~= "table" then return nil, "options table expected, got " .. type(options) end
+  local unknown = args.unknown_keys(options, OPTIONS, "options")
+  if unknown then return nil, unknown end
   local method = options.method
   if method == nil then
     method = "refined"
@@ -168,9 +173,8 @@ function M.solve(corners, camera, tag_size, options)
   if not bad then arg_error(1, problem) end
   problem = camera_model.check(camera)
   if problem then arg_error(2, problem) end
-  if not is_positive(tag_size) then
-    arg_error(3, "positive number expected for tag_size, got " .. describe(tag_size))
-  end
+  problem = args.check_size(tag_size, "tag_size")
+  if problem then arg_error(3, problem) end
   local method, tol, max_it, prior, into = read_options(options)
   if not method then arg_error(4, tol) end
   if bad ~= true then return nil, "tagpose: corner " .. bad .. " is not finite" end

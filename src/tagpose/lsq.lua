@@ -21,10 +21,11 @@
 -- not given).
 -- @module tagpose.lsq
 
-local camera_model = require("tagpose.camera")
+local lens_model = require("tagpose.lens")
 
 local huge = math.huge
-local brown, fisheye, camera_lens = camera_model.brown, camera_model.fisheye, camera_model.lens
+local brown, fisheye, coefficients = lens_model.brown, lens_model.fisheye,
+  lens_model.coefficients
 
 local M = {}
 
@@ -45,8 +46,8 @@ M.SINGULAR = 1e-13
 function M.pack(camera, out)
   out = out or {}
   out.fx, out.fy, out.cx, out.cy = camera.fx, camera.fy, camera.cx, camera.cy
-  -- camera.lens gives the model's coefficients in the order its maps take them
-  local lens, c1, c2, c3, c4, c5, c6, c7, c8 = camera_lens(camera)
+  -- the model's coefficients in the order its maps take them
+  local lens, c1, c2, c3, c4, c5, c6, c7, c8 = coefficients(camera)
   out.lens = lens
   if lens == M.FISHEYE then
     out.k1, out.k2, out.k3, out.k4, out.p1, out.p2, out.k5, out.k6 = c1, c2, c3, c4, 0, 0, 0, 0

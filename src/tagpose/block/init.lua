@@ -39,7 +39,7 @@ local fit = require("tagpose.block.fit")
 local scene = require("tagpose.block.scene")
 local identity = require("tagpose.block.identity")
 
-local is_finite, is_positive, describe = compat.is_finite, args.is_positive, args.describe
+local is_finite = compat.is_finite
 local sqrt, huge = math.sqrt, math.huge
 local mul, t_mul = rotation.multiply, rotation.transpose_multiply
 
@@ -48,6 +48,10 @@ local M = {}
 --- Two blocks whose centres are closer than this (× block_size) are one cube: the later found
 -- (fewer faces, or a larger error) is dropped and its tags reported in `skipped`.
 M.OVERLAP = 0.5
+
+--- A block more than this many times its tags' size is taken for a mix of units (metres and
+-- millimetres), and refused.
+M.MAX_RATIO = 100
 
 local function arg_error(n, message)
   args.raise(n, "solve", message, 3)
@@ -308,16 +312,21 @@ function M.solve(detections, camera, tag_size, block_size, options)
   if type(detections) ~= "table" then
     arg_error(1, "array of detections expected, got " .. type(detections))
   end
+  if detections[1] == nil and (detections.corners ~= nil or detections.id ~= nil) then
+    arg_error(1, "array of detections expected, got one detection (pass {detection})")
+  end
   local problem = camera_model.check(camera)
   if problem then arg_error(2, problem) end
-  if not is_positive(tag_size) then
-    arg_error(3, "positive number expected for tag_size, got " .. describe(tag_size))
-  end
-  if not is_positive(block_size) then
-    arg_error(4, "positive number expected for block_size, got " .. describe(block_size))
-  end
+  problem = args.check_size(tag_size, "tag_size")
+  if problem then arg_error(3, problem) end
+  problem = args.check_size(block_size, "block_size")
+  if problem then arg_error(4, problem) end
   if not (block_size > tag_size) then
     arg_error(4, "block_size must exceed tag_size, got " .. block_size .. " <= " .. tag_size)
+  end
+  if block_size > M.MAX_RATIO * tag_size then
+    arg_error(4, ("block_size %g is %.0f times tag_size %g: both must be in one unit (a tag "
+      .. "covers a fair part of its face)"):format(block_size, block_size / tag_size, tag_size))
   end
   local settings
   settings, problem = read_options(options)

@@ -120,6 +120,10 @@ local function read_previous(previous)
   return out, previous.next_id
 end
 
+-- the options block.solve takes
+local OPTIONS = { "up", "up_tolerance", "floor", "floor_tolerance", "previous", "faces",
+  "max_iterations" }
+
 -- the scalar options: name, check, what the check expects
 local SCALAR_OPTIONS = {
   "up_tolerance", is_positive, "positive number",
@@ -154,7 +158,8 @@ function M.read(options)
     auto_up = false, auto_floor = false }
   if options == nil then return s end
   if type(options) ~= "table" then return nil, "options table expected, got " .. type(options) end
-  local problem
+  local problem = args.unknown_keys(options, OPTIONS, "options")
+  if problem then return nil, problem end
   if options.up == "auto" then
     s.auto_up = true
   elseif options.up ~= nil then
