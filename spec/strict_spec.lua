@@ -233,3 +233,66 @@ describe("strict inputs", function()
     end)
   end)
 end)
+
+describe("frames of many tags", function()
+  local fit = require("tagpose.block.fit")
+  local cam = { fx = 313.9, fy = 313.9, cx = 159.5, cy = 119.5 }
+
+  -- n detections: piled at one place, one tag copied, or spread over the image
+  local function frame(kind, n)
+    local rng = geometry.rng(99)
+    local dets = {}
+    local r0, t0 = geometry.random_pose(rng, cam, 0.024, { width = 30, u = 160, v = 120 })
+    for i = 1, n do
+      local r, t = r0, t0
+      if kind == "pile" then
+        r, t = geometry.random_pose(rng, cam, 0.024, { width = rng.uniform(20, 40),
+          u = 160 + rng.uniform(-5, 5), v = 120 + rng.uniform(-5, 5) })
+      elseif kind == "spread" then
+        r, t = geometry.random_pose(rng, cam, 0.024, { width = rng.uniform(8, 12),
+          u = rng.uniform(10, 310), v = rng.uniform(10, 230) })
+      end
+      local px = assert(geometry.project(cam, r, t, 0.024))
+      for k = 1, 4 do
+        px[k][1], px[k][2] = px[k][1] + 0.3 * rng.normal(), px[k][2] + 0.3 * rng.normal()
+      end
+      dets[i] = { id = 0, corners = px }
+    end
+    return dets
+  end
+
+  it("use every detection once or skip it, with joint fits linear in their number", function()
+    local hypothesis = fit.hypothesis
+    local fits = 0
+    fit.hypothesis = function(...)
+      fits = fits + 1
+      return hypothesis(...)
+    end
+    local ok, err = pcall(function()
+      for _, kind in ipairs({ "pile", "copies", "spread" }) do
+        local n = 240
+        fits = 0
+        local blocks = assert(tagpose.block.solve(frame(kind, n), cam, 0.024, 0.055))
+        local seen = {}
+        for _, b in ipairs(blocks) do
+          for _, i in ipairs(b.tags) do
+            assert.is_nil(seen[i], kind)
+            seen[i] = true
+          end
+          local p = b.position
+          assert.is_true(p.x == p.x and p.y == p.y and p.z == p.z, kind)
+        end
+        for _, s in ipairs(blocks.skipped) do
+          assert.is_nil(seen[s.index], kind)
+          assert.is_string(s.reason)
+          seen[s.index] = true
+        end
+        for i = 1, n do assert.is_true(seen[i], kind .. " detection " .. i) end
+        -- (before the fit budget, a pile refitted its hypotheses after every block it found)
+        assert.is_true(fits <= n + 32, ("%s: %d joint fits for %d tags"):format(kind, fits, n))
+      end
+    end)
+    fit.hypothesis = hypothesis
+    assert(ok, err)
+  end)
+end)

@@ -78,41 +78,146 @@ local function agree(a, b, faces, block_size, sigma)
   return sqrt(perp2) / pg + angle / M.ROTATION_GATE, k
 end
 
+--- The most candidates of other detections one candidate is compared with (the nearest
+-- centres): a cube shows at most three faces, so this only bites in frames of many tags piled
+-- together, where it keeps the grouping linear in their number.
+M.NEIGHBOURS = 12
+
+-- an order for table.sort (module-level: a closure made per call stops LuaJIT's compiler)
+local function by_detection(a, b) return a[4] < b[4] end
+local function by_score(a, b) return a[2] < b[2] or (a[2] == b[2] and a[4] < b[4]) end
+
+-- At most this many times NEIGHBOURS candidates are scanned each way along x: in a pile of
+-- tags at one place (copies of one tag) the nearest are then near ones, not the very nearest.
+local SCAN = 4
+
+-- Insert candidate i at squared distance d2 into the nearest list `out` (n long, at most cap,
+-- nearest first); the new length.
+local function insert(out, n, cap, d2, i)
+  if n < cap then
+    n = n + 1
+    out[n] = out[n] or {}
+  end
+  local e = out[n]
+  local k = n
+  while k > 1 and out[k - 1][1] > d2 do
+    out[k] = out[k - 1]
+    k = k - 1
+  end
+  out[k] = e
+  e[1], e[2] = d2, i
+  return n
+end
+
+-- The candidates near candidate i of the frame's flat list C (`x, y, z, det` arrays, and
+-- `order`: the candidates by x, `rank`: each one's place in it): `{d2, index}` for the
+-- NEIGHBOURS nearest candidates of other detections within the coarsest gate, into `out`,
+-- nearest first; their count. Scans outward along x until x alone is farther than the
+-- farthest kept: a dense pile of tags costs about NEIGHBOURS per candidate, not all of them.
+local function neighbours(C, i, reach2, out)
+  local X, Y, Z, D, order = C.x, C.y, C.z, C.det, C.order
+  local cx, cy, cz, det = X[i], Y[i], Z[i], D[i]
+  local cap, n, total = M.NEIGHBOURS, 0, #order
+  for dir = -1, 1, 2 do
+    local p, last = C.rank[i] + dir, C.rank[i] + dir * SCAN * cap
+    while p >= 1 and p <= total and p ~= last do
+      local o = order[p]
+      local dx = X[o] - cx
+      local limit = n < cap and reach2 or out[n][1]
+      if dx * dx > limit then break end
+      if D[o] ~= det then
+        local dy, dz = Y[o] - cy, Z[o] - cz
+        local d2 = dx * dx + dy * dy + dz * dz
+        if d2 <= limit and (n < cap or d2 < out[n][1]) then n = insert(out, n, cap, d2, o) end
+      end
+      p = p + dir
+    end
+  end
+  return n
+end
+
 --- For every candidate a of every detection s (key 2s + a), the other detections with a
--- candidate that agrees with it: `links[key][j] = {G, score, b}` for the best such candidate b
--- of detection j, G its face in a's block frame. Each pair of candidates is tried once.
+-- candidate that agrees with it: `links[key]` a list of `{G, score, b, j}` — for each such
+-- detection j its best agreeing candidate b, G that candidate's face in a's block frame — in
+-- the order of j. Each pair of candidates is tried once.
 -- @tparam table fr the frame record (`tagpose.block.frame`)
 -- @treturn table links
 function M.links(fr)
   local dets, block_size, faces = fr.dets, fr.block_size, fr.settings.faces
   local sigma = sqrt(fr.sigma2)
-  local links = {}
+  -- the coarsest gate: no agreeing pair is further apart than this
+  local deepest = 0
   for s = 1, #dets do
-    for a = 1, #dets[s].cands do links[2 * s + a] = {} end
+    for a = 1, #dets[s].cands do
+      local d = dets[s].cands[a].depth
+      if d > deepest then deepest = d end
+    end
   end
+  local pg = M.PERP_GATE * block_size
+  local ag = math.max(M.ALONG_GATE * block_size, M.ALONG_K * sqrt(2) * deepest * sigma)
+  local reach2 = pg * pg + ag * ag
+  -- the candidates as flat arrays, sorted by x; each one's neighbours (a list and a set of keys
+  -- 2j + b), then every pair in either's list once
+  local C = { x = {}, y = {}, z = {}, det = {}, key = {}, order = {}, rank = {} }
   for s = 1, #dets do
-    local ds = dets[s]
-    for j = s + 1, #dets do
-      local dj = dets[j]
-      for a = 1, #ds.cands do
-        local ca, row_a = ds.cands[a], links[2 * s + a]
-        for b = 1, #dj.cands do
-          local score, k = agree(ca, dj.cands[b], faces, block_size, sigma)
-          if score then
-            -- j seen from s's candidate a, and s seen from j's candidate b
-            local link = row_a[j]
-            if not link or score < link[2] then
-              row_a[j] = { faces and dj.face_r or ROTATIONS[k], score, b }
-            end
-            local row_b = links[2 * j + b]
-            link = row_b[s]
-            if not link or score < link[2] then
-              row_b[s] = { faces and ds.face_r or ROTATIONS[INVERSE[k]], score, a }
-            end
+    for a = 1, #dets[s].cands do
+      local c, i = dets[s].cands[a], #C.x + 1
+      C.x[i], C.y[i], C.z[i], C.det[i], C.key[i], C.order[i] = c.x, c.y, c.z, s, 2 * s + a, i
+    end
+  end
+  table.sort(C.order, function(p, q) return C.x[p] < C.x[q] or (C.x[p] == C.x[q] and p < q) end)
+  for p = 1, #C.order do C.rank[C.order[p]] = p end
+  local near, lists, sets = {}, {}, {}
+  for i = 1, #C.x do
+    local list, set = {}, {}
+    for k = 1, neighbours(C, i, reach2, near) do
+      local key = C.key[near[k][2]]
+      list[k], set[key] = key, true
+    end
+    lists[C.key[i]], sets[C.key[i]] = list, set
+  end
+  -- by[key][j]: the link of candidate key to detection j
+  local by = {}
+  for key in pairs(sets) do by[key] = {} end
+  for ka, list in pairs(lists) do
+    for k = 1, #list do
+      local kb = list[k]
+      if ka < kb or not sets[kb][ka] then
+        -- the pair from the lower detection's side: s, a and j, b
+        local lo, hi = ka, kb
+        if hi < lo then lo, hi = kb, ka end
+        local s, a, j, b = math.floor(lo / 2), lo % 2, math.floor(hi / 2), hi % 2
+        if a == 0 then s, a = s - 1, 2 end
+        if b == 0 then j, b = j - 1, 2 end
+        local ds, dj = dets[s], dets[j]
+        local score, g = agree(ds.cands[a], dj.cands[b], faces, block_size, sigma)
+        if score then
+          -- j seen from s's candidate a, and s seen from j's candidate b
+          local row_a, row_b = by[lo], by[hi]
+          local link = row_a[j]
+          if not link or score < link[2] then
+            row_a[j] = { faces and dj.face_r or ROTATIONS[g], score, b, j }
+          end
+          link = row_b[s]
+          if not link or score < link[2] then
+            row_b[s] = { faces and ds.face_r or ROTATIONS[INVERSE[g]], score, a, s }
           end
         end
       end
     end
+  end
+  -- each candidate's links, the NEIGHBOURS best (others may have linked to it beyond its own
+  -- nearest), in the order of the detections
+  local links = {}
+  for key, row in pairs(by) do
+    local list = {}
+    for _, link in pairs(row) do list[#list + 1] = link end
+    if #list > M.NEIGHBOURS then
+      table.sort(list, by_score)
+      for k = #list, M.NEIGHBOURS + 1, -1 do list[k] = nil end
+    end
+    table.sort(list, by_detection)
+    links[key] = list
   end
   return links
 end
@@ -128,9 +233,10 @@ function M.seeded(fr, s, a, free, links)
   local dets, faces = fr.dets, fr.settings.faces
   local h = M.new(s, faces and dets[s].face_r or IDENTITY, a, dets[s].cands[a])
   local row = links[2 * s + a]
-  for j = 1, #dets do
-    local link = row[j]
-    if link and free[j] then
+  for i = 1, #row do
+    local link = row[i]
+    local j = link[4]
+    if free[j] then
       local best_g, best_score, best_b = link[1], link[2], link[3]
       -- one tag per face: the closer claim keeps it
       local clash = nil
@@ -153,45 +259,34 @@ function M.seeded(fr, s, a, free, links)
   return h
 end
 
---- Are the detections of a list all free?
--- @tparam {int,...} list
--- @tparam {boolean,...} free
--- @treturn boolean
-function M.all_free(list, free)
-  for i = 1, #list do
-    if not free[list[i]] then return false end
-  end
-  return true
+--- The key of a hypothesis's set of detections (its gated members, in any order).
+-- @tparam table h
+-- @treturn string
+function M.set_key(h)
+  local list = {}
+  for m = 1, #h.gated do list[m] = h.gated[m] end
+  table.sort(list)
+  return table.concat(list, ",")
 end
 
 --- An already fitted hypothesis over the same detections whose result is where this one's
 -- start is (its fit would only repeat that one), or nil.
 -- @tparam table h a hypothesis not fitted yet
--- @tparam {table,...} fitted the hypotheses fitted this frame
+-- @tparam {table,...} fitted the hypotheses fitted this frame over h's set of detections, in
+--   the order fitted
 -- @tparam table faces the known faces (or nil)
 -- @treturn table|nil
 function M.twin_of(h, fitted, faces)
-  local n = #h.gated
   for i = 1, #fitted do
     local f = fitted[i]
-    if #f.gated == n and f.cost < huge then
-      local same = true
-      for k = 1, n do
-        local found = false
-        for m = 1, n do
-          if f.gated[m] == h.gated[k] then found = true end
-        end
-        if not found then same = false end
+    if f.cost < huge then
+      local _, angle
+      if faces then
+        angle = rotation.angle(f.r, h.start.r)
+      else
+        _, angle = cube.nearest(t_mul(f.r, h.start.r, work))
       end
-      if same then
-        local _, angle
-        if faces then
-          angle = rotation.angle(f.r, h.start.r)
-        else
-          _, angle = cube.nearest(t_mul(f.r, h.start.r, work))
-        end
-        if angle < M.TWIN_ANGLE then return f end
-      end
+      if angle < M.TWIN_ANGLE then return f end
     end
   end
   return nil

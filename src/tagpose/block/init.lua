@@ -57,44 +57,115 @@ local function arg_error(n, message)
   args.raise(n, "solve", message, 3)
 end
 
--- The best hypothesis of two or more tags among the free detections (most members, then the
--- lowest cost), or nil. Hypotheses are cached by seed while all their tags are free, and not
--- fitted twice where a fitted one already gives their start.
-local function best_hypothesis(fr, free, links, cache, fitted)
-  local dets, faces = fr.dets, fr.settings.faces
-  local best = nil
-  for s = 1, #dets do
-    if free[s] then
-      for a = 1, #dets[s].cands do
-        local key = 2 * s + a
-        local h = cache[key]
-        if not (h and group.all_free(h.gated, free)) then
-          h = group.seeded(fr, s, a, free, links)
-          if #h.gated > 1 then
-            local twin = group.twin_of(h, fitted, faces)
-            if twin then
-              h = twin
-            else
-              fit.hypothesis(fr, h)
-              fitted[#fitted + 1] = h
-            end
-          end
-          cache[key] = h
-        end
-        if #h.members > 1 and h.cost < huge and group.better(h, best) then best = h end
-      end
+--- Joint fits a frame may spend: this many per detection, and `FIT_BASE` more. A frame of a few
+-- blocks needs about one per detection (at most 8 for 7 tags on the dev set); a pile of
+-- hundreds of tags at one place could otherwise refit its hypotheses after every block it
+-- finds. Past the budget, tags left over become one-face blocks.
+M.FITS_PER_TAG = 1
+--- See `FITS_PER_TAG`.
+M.FIT_BASE = 32
+
+-- The search of a frame: each seed's hypothesis (`cache`, by key 2s + a), the keys to form
+-- (again: none yet, or a member was taken since), the keys whose hypotheses are blocks of two
+-- or more tags (`qualifying`), the keys whose hypotheses hold each detection, the hypotheses
+-- fitted by set of detections, and the fits left. A round then costs what changed in it, not
+-- the whole frame.
+local function search(fr)
+  local state = { cache = {}, pending = {}, qualifying = {}, holding = {}, fitted = {},
+    budget = M.FITS_PER_TAG * #fr.dets + M.FIT_BASE, dead = {} }
+  for s = 1, #fr.dets do
+    for a = 1, #fr.dets[s].cands do state.pending[2 * s + a] = true end
+  end
+  return state
+end
+
+-- Detection m is taken: its own seeds are done, the hypotheses that held it are formed again.
+local function take(state, m)
+  for a = 1, 2 do
+    local key = 2 * m + a
+    state.dead[key], state.pending[key], state.qualifying[key] = true, nil, nil
+  end
+  local list = state.holding[m]
+  if list then
+    for i = 1, #list do
+      local key = list[i]
+      if not state.dead[key] then state.pending[key] = true end
     end
+    state.holding[m] = nil
+  end
+end
+
+-- The hypothesis of seed (s, a) among the free detections: fitted, or a twin of one fitted
+-- over the same detections, or left unfitted (not a block) when the fits are spent.
+local function form(fr, s, a, free, links, state)
+  local h = group.seeded(fr, s, a, free, links)
+  if #h.gated > 1 then
+    local set = group.set_key(h)
+    local same = state.fitted[set]
+    local twin = same and group.twin_of(h, same, fr.settings.faces)
+    if twin then
+      h = twin
+    elseif state.budget > 0 then
+      state.budget = state.budget - 1
+      fit.hypothesis(fr, h)
+      if not same then
+        same = {}
+        state.fitted[set] = same
+      end
+      same[#same + 1] = h
+    end
+  end
+  local key = 2 * s + a
+  for m = 1, #h.gated do
+    local j = h.gated[m]
+    local list = state.holding[j]
+    if not list then
+      list = {}
+      state.holding[j] = list
+    end
+    list[#list + 1] = key
+  end
+  return h
+end
+
+local function ascending(p, q) return p < q end
+
+-- The best hypothesis of two or more tags among the free detections (most members, then the
+-- lowest cost, the first seed in order on a tie), or nil. The pending seeds are formed first,
+-- in order.
+local function best_hypothesis(fr, free, links, state)
+  local cache, qualifying, keys = state.cache, state.qualifying, {}
+  for key in pairs(state.pending) do keys[#keys + 1] = key end
+  table.sort(keys, ascending)
+  for i = 1, #keys do
+    local key = keys[i]
+    local s = math.floor((key - 1) / 2)
+    local h = form(fr, s, key - 2 * s, free, links, state)
+    cache[key] = h
+    qualifying[key] = #h.members > 1 and h.cost < huge or nil
+  end
+  state.pending = {}
+  keys = {}
+  for key in pairs(qualifying) do keys[#keys + 1] = key end
+  table.sort(keys, ascending)
+  local best = nil
+  for i = 1, #keys do
+    local h = cache[keys[i]]
+    if group.better(h, best) then best = h end
   end
   return best
 end
 
--- The free detection with the smallest single-tag error.
-local function best_single(dets, free)
-  local s = nil
-  for k = 1, #dets do
-    if free[k] and (not s or dets[k].best_sse < dets[s].best_sse) then s = k end
-  end
-  return s
+-- The detections in order of their single-tag error (the smallest first, then by index): the
+-- order in which tags that make no block with others become one-face blocks.
+local function by_error(dets)
+  local order = {}
+  for k = 1, #dets do order[k] = k end
+  table.sort(order, function(p, q)
+    local a, b = dets[p].best_sse, dets[q].best_sse
+    return a < b or (a == b and p < q)
+  end)
+  return order
 end
 
 -- The frame's blocks, in the order found: `{h = hypothesis, other = the other pose of a
@@ -103,21 +174,24 @@ local function find(fr)
   local dets = fr.dets
   local free, remaining = {}, #dets
   for s = 1, #dets do free[s] = true end
-  local found, cache, fitted = {}, {}, {}
+  local found, state = {}, search(fr)
+  local singles, next_single = by_error(dets), 1
   local links = group.links(fr)
   local inferred = not (fr.settings.auto_up or fr.settings.auto_floor)
   while remaining > 0 do
-    local h, other, how = best_hypothesis(fr, free, links, cache, fitted), nil, "faces"
+    local h, other, how = best_hypothesis(fr, free, links, state), nil, "faces"
     if not h and not inferred then
       -- every block of two or more faces is found: what they show of the scene
       scene.infer(fr, found)
       inferred = true
     elseif not h then
       -- no two tags make a block: each free tag is one (the best-fitting first)
-      local s = best_single(dets, free)
+      while not free[singles[next_single]] do next_single = next_single + 1 end
+      local s = singles[next_single]
       h, other, how = fit.single(fr, s)
       if not h then
         free[s] = false
+        take(state, s)
         remaining = remaining - 1
         fr.skipped[#fr.skipped + 1] = { index = dets[s].index,
           reason = "block: no pose puts the tag in front of the camera" }
@@ -126,6 +200,7 @@ local function find(fr)
     if h then
       for m = 1, #h.members do
         free[h.members[m]] = false
+        take(state, h.members[m])
         remaining = remaining - 1
       end
       found[#found + 1] = { h = h, other = other, how = how }
@@ -144,23 +219,41 @@ end
 -- as the same tag detected twice); the others' tags go to `skipped`.
 local function keep(fr, found)
   local dets, blocks = fr.dets, {}
-  local overlap2 = (M.OVERLAP * fr.block_size) ^ 2
+  local size = M.OVERLAP * fr.block_size
+  local overlap2 = size * size
+  -- the kept blocks by cell of a grid of that size: an overlapping one is in one of the 27
+  -- cells around
+  local grid = {}
+  local function cell(i, j, k) return i .. "," .. j .. "," .. k end
   for _, f in ipairs(found) do
     local h = f.h
     local n = #h.members
     local err = sqrt(h.sse / (4 * n))
     local reason = nil
+    local ci, cj, ck
     if not finite_block(h.r, h.x, h.y, h.z, err) then
       reason = "block: the fit is not finite"
     else
-      for k = 1, #blocks do
-        local o = blocks[k].h
-        if (o.x - h.x) ^ 2 + (o.y - h.y) ^ 2 + (o.z - h.z) ^ 2 < overlap2 then
-          local list = {}
-          for m = 1, #o.members do list[m] = dets[o.members[m]].index end
-          reason = "block: the tag does not fit the block of detection(s) "
-            .. table.concat(list, ", ") .. " in its place"
+      ci, cj, ck = math.floor(h.x / size), math.floor(h.y / size), math.floor(h.z / size)
+      -- the last kept block that overlaps (as a scan of all of them in order would find)
+      local last = 0
+      for i = ci - 1, ci + 1 do
+        for j = cj - 1, cj + 1 do
+          for k = ck - 1, ck + 1 do
+            local list = grid[cell(i, j, k)]
+            for q = 1, list and #list or 0 do
+              local o = blocks[list[q]].h
+              local dx, dy, dz = o.x - h.x, o.y - h.y, o.z - h.z
+              if dx * dx + dy * dy + dz * dz < overlap2 and list[q] > last then last = list[q] end
+            end
+          end
         end
+      end
+      if last > 0 then
+        local o, list = blocks[last].h, {}
+        for m = 1, #o.members do list[m] = dets[o.members[m]].index end
+        reason = "block: the tag does not fit the block of detection(s) "
+          .. table.concat(list, ", ") .. " in its place"
       end
     end
     if reason then
@@ -170,6 +263,9 @@ local function keep(fr, found)
     else
       blocks[#blocks + 1] = f
       f.err = err
+      local key = cell(ci, cj, ck)
+      grid[key] = grid[key] or {}
+      table.insert(grid[key], #blocks)
     end
   end
   return blocks
@@ -346,6 +442,7 @@ end
 compat.interpret(M.solve)
 compat.interpret(find)
 compat.interpret(best_hypothesis)
+compat.interpret(form)
 compat.interpret(keep)
 compat.interpret(results)
 
