@@ -54,4 +54,48 @@ function M.is_finite(v)
   return type(v) == "number" and v == v and v < huge and v > -huge
 end
 
+local find, byte = string.find, string.byte
+
+--- The number a decimal numeral denotes, the same on every VM; `nil` for anything else.
+-- The numeral is `[-+] digits [. [digits]] [(e|E) [-+] digits]` or the same with no digits
+-- before the point (`.5`); no spaces, no hexadecimal, no `inf` or `nan` (Lua 5.1 and LuaJIT
+-- read those through `strtod`, 5.3 and 5.4 do not). A whole numeral of 16 digits or more,
+-- which 5.3's integers would hold exactly and doubles round, is the nearest double on every
+-- VM. An exponent out of range gives ±infinity (or 0), as `tonumber` does. The scan is
+-- linear in the length of `s` (one anchored `find` per part).
+-- @tparam string s
+-- @treturn number|nil
+function M.decimal(s)
+  local p = 1
+  local b = byte(s, 1)
+  if b == 43 or b == 45 then p = 2 end -- + -
+  local _, e = find(s, "^%d*", p)
+  local int_digits = e - p + 1
+  p = e + 1
+  local point = byte(s, p) == 46
+  local frac_digits = 0
+  if point then
+    _, e = find(s, "^%d*", p + 1)
+    frac_digits = e - p
+    p = e + 1
+  end
+  if int_digits + frac_digits == 0 then return nil end
+  local exponent = false
+  b = byte(s, p)
+  if b == 101 or b == 69 then -- e E
+    local q = p + 1
+    local c = byte(s, q)
+    if c == 43 or c == 45 then q = q + 1 end
+    _, e = find(s, "^%d*", q)
+    if e < q then return nil end
+    p = e + 1
+    exponent = true
+  end
+  if p <= #s then return nil end
+  if not point and not exponent and int_digits >= 16 then
+    return tonumber(s .. "e0") -- a double on every VM, as 5.1 and LuaJIT read it
+  end
+  return tonumber(s)
+end
+
 return M

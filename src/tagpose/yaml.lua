@@ -32,6 +32,9 @@
 -- The reader runs in time linear in the text and never calls back into Lua code it reads.
 -- @module tagpose.yaml
 
+local compat = require("tagpose.compat")
+
+local decimal = compat.decimal
 local floor = math.floor
 local byte, sub, find, char, concat = string.byte, string.sub, string.find, string.char,
   table.concat
@@ -68,41 +71,6 @@ local function rtrim_end(s, i, j)
   return j
 end
 
--- a decimal numeral: [-+] digits [. digits] [e [-+] digits], or [-+] . digits [...]; every
--- step is one anchored find with a single repetition, so the scan is linear
-local function decimal(s)
-  local p = 1
-  local b = byte(s, 1)
-  if b == 43 or b == 45 then p = 2 end -- + -
-  local _, e = find(s, "^%d*", p)
-  local int_digits = e - p + 1
-  p = e + 1
-  local frac_digits = 0
-  if byte(s, p) == 46 then -- .
-    _, e = find(s, "^%d*", p + 1)
-    frac_digits = e - p
-    p = e + 1
-  end
-  if int_digits + frac_digits == 0 then return nil end
-  local exponent = false
-  b = byte(s, p)
-  if b == 101 or b == 69 then -- e E
-    local q = p + 1
-    local c = byte(s, q)
-    if c == 43 or c == 45 then q = q + 1 end
-    _, e = find(s, "^%d*", q)
-    if e < q then return nil end
-    p = e + 1
-    exponent = true
-  end
-  if p <= #s then return nil end
-  if frac_digits == 0 and not exponent and byte(s, #s) ~= 46 and int_digits >= 16 then
-    return tonumber(s .. "e0") -- a double on every VM, as 5.1 and LuaJIT read it
-  end
-  return tonumber(s)
-end
-
-M.decimal = decimal
 
 local function utf8_char(code)
   if code < 0x80 then return char(code) end
