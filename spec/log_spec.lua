@@ -158,27 +158,36 @@ describe("tagpose.tools.log", function()
     end)
   end)
 
-  describe("corner_reader()", function()
+  describe("read_corners() and corner_reader()", function()
     local HEADER = "frame,tag,u1,v1,u2,v2,u3,v3,u4,v4"
+    local M_HEADER = log.CORNER_COLUMNS
 
-    -- every detection and problem of a log text, read row by row
+    -- every detection and problem ("line: reason") of a log text
     local function read(text)
       local path = tmpfile(text)
-      local reader, err = log.corner_reader(path)
-      if not reader then
-        os.remove(path)
-        return nil, err
-      end
-      local rows, problems = {}, {}
-      while true do
-        local det, line, reason = reader:read()
-        if det == nil then break end
-        if det then rows[#rows + 1] = det else problems[#problems + 1] = line .. ": " .. reason end
-      end
+      local rows, problems = log.read_corners(path)
+      os.remove(path)
+      if not rows then return nil, problems end
+      local out = {}
+      for k, p in ipairs(problems) do out[k] = p.line .. ": " .. p.reason end
+      return rows, out
+    end
+
+    it("reads a log row by row", function()
+      local path = tmpfile(HEADER .. "\n1,0,1,2,3,4,5,6,7,8\n2,0,1,2\n3,4,1,2,3,4,5,6,7,8\n")
+      local reader = assert(log.corner_reader(path))
+      assert.same(M_HEADER, reader.header)
+      local a = reader:read()
+      local b, line, reason = reader:read()
+      local c = reader:read()
+      assert.is_nil(reader:read())
       reader:close()
       os.remove(path)
-      return rows, problems
-    end
+      assert.same({ 1, 0, 2 }, { a.frame, a.tag, a.line })
+      assert.same({ false, 3, "4 fields, header has 10" }, { b, line, reason })
+      assert.same({ 3, 4, 4 }, { c.frame, c.tag, c.line })
+      assert.same({ { 1, 2 }, { 3, 4 }, { 5, 6 }, { 7, 8 } }, c.corners)
+    end)
 
     it("refuses a row with too many fields: two rows glued by a lost line end", function()
       local rows, problems = read(HEADER .. "\n1,0,1,2,3,4,5,6,7,114.4996"
@@ -196,6 +205,7 @@ describe("tagpose.tools.log", function()
       assert.is_nil(rows)
       assert.equal("log: header column 11 has no name (line 2)", err)
       rows, err = read("frame;tag;u1;v1;u2;v2;u3;v3;u4;v4\n")
+      assert.is_nil(rows)
       assert.equal("log: header has no column 'frame' (line 1): its fields are separated by ';',"
         .. " not commas", err)
     end)

@@ -192,7 +192,6 @@ local function check_tag_size(v, fail_at, line_of)
   return v
 end
 
--------------------------------------------------------------------------------------------------
 -- Lua camera files
 
 local LUA_KEYS = { "fx", "fy", "cx", "cy", "model", "distortion", "width", "height", "name",
@@ -328,7 +327,6 @@ local function lua_camera(text, name)
   return camera, info
 end
 
--------------------------------------------------------------------------------------------------
 -- YAML
 
 local NULL, TAG = yaml.NULL, yaml.TAG

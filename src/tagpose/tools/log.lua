@@ -69,7 +69,6 @@ local function is_finite(v)
   return v == v and v < huge and v > -huge
 end
 
--------------------------------------------------------------------------------------------------
 -- physical lines, read in chunks
 
 local Lines = {}
@@ -153,7 +152,6 @@ function Lines:close()
   self.f = nil
 end
 
--------------------------------------------------------------------------------------------------
 -- CSV records
 
 -- the last position before j + 1 that is not a space or tab, at least i - 1 (linear)

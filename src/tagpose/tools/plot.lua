@@ -270,12 +270,14 @@ local function marker_svg(kind, x, y, colour)
   local r = MARKER_R
   local c = escape(colour)
   if kind == "circle" then
-    return ('<circle class="marker" cx="%s" cy="%s" r="%s" fill="#ffffff" stroke="%s"'
-      .. ' stroke-width="1.3" stroke-dasharray="none"/>'):format(coord(x), coord(y), coord(r), c)
+    return ('<circle class="marker" data-marker="circle" cx="%s" cy="%s" r="%s" fill="#ffffff"'
+      .. ' stroke="%s" stroke-width="1.3" stroke-dasharray="none"/>'):format(coord(x), coord(y),
+      coord(r), c)
   elseif kind == "cross" then
-    return ('<path class="marker" d="M%s %sL%s %sM%s %sL%s %s" fill="none" stroke="%s"'
-      .. ' stroke-width="1.5" stroke-dasharray="none"/>'):format(coord(x - r), coord(y - r),
-      coord(x + r), coord(y + r), coord(x - r), coord(y + r), coord(x + r), coord(y - r), c)
+    return ('<path class="marker" data-marker="cross" d="M%s %sL%s %sM%s %sL%s %s" fill="none"'
+      .. ' stroke="%s" stroke-width="1.5" stroke-dasharray="none"/>'):format(coord(x - r),
+      coord(y - r), coord(x + r), coord(y + r), coord(x - r), coord(y + r), coord(x + r),
+      coord(y - r), c)
   end
   local pts
   if kind == "square" then
@@ -287,8 +289,8 @@ local function marker_svg(kind, x, y, colour)
   end
   local parts = {}
   for i = 1, #pts, 2 do parts[#parts + 1] = coord(pts[i]) .. "," .. coord(pts[i + 1]) end
-  return ('<polygon class="marker" points="%s" fill="#ffffff" stroke="%s" stroke-width="1.3"'
-    .. ' stroke-dasharray="none"/>'):format(concat(parts, " "), c)
+  return ('<polygon class="marker" data-marker="%s" points="%s" fill="#ffffff" stroke="%s"'
+    .. ' stroke-width="1.3" stroke-dasharray="none"/>'):format(kind, concat(parts, " "), c)
 end
 
 -- the legend's entries laid out in rows across `width`; returns the SVG lines and the height
@@ -525,7 +527,6 @@ local ROTATION = {
 -- figure's resolution: memory stays bounded and no outlier is dropped.
 M.MAX_POINTS = 1024
 
--------------------------------------------------------------------------------------------------
 -- tracks: keeping apart the tags that share an id
 
 local Tracker = {}
@@ -621,7 +622,6 @@ function Tracker:assign(frame, id, points)
   return slots, tracks
 end
 
--------------------------------------------------------------------------------------------------
 -- the recorder: what a pose figure draws, kept compact as it comes
 
 local Recorder = {}

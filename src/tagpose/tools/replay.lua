@@ -275,7 +275,6 @@ local function position_point(pose)
   return { p.x, p.y, p.z }
 end
 
--------------------------------------------------------------------------------------------------
 -- a pose log to compare with, read alongside in frame order
 
 local Compare = {}
@@ -411,7 +410,6 @@ function Compare:finish()
   self:take(huge)
 end
 
--------------------------------------------------------------------------------------------------
 
 local function run(arg)
   local opt = parse_command_line(arg)
