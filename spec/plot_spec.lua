@@ -370,6 +370,15 @@ describe("tagpose.tools.plot", function()
       assert.truthy(panel(svg, "x"):find(">4<", 1, true))
       assert.equal(0, rec.dropped)
     end)
+
+    it("keeps at most MAX_SERIES series, counting the points it leaves out", function()
+      local rec = plot.recorder()
+      local src = rec:source("ids")
+      for k = 1, plot.MAX_SERIES + 10 do rec:add(src, k, 1, 1, make_pose(0, 0, 1, 1, 0, 0, 0)) end
+      assert.equal(10, rec.skipped)
+      local _, shown = plot.draw(rec)
+      assert.equal(plot.MAX_SERIES, shown.tracks)
+    end)
   end)
 
   describe("figure()", function()

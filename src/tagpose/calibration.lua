@@ -683,9 +683,12 @@ function M.read(path)
   end
   local f, err = io.open(path, "rb")
   if not f then return nil, "calibration: " .. tostring(err) end
-  local text = f:read(M.MAX_BYTES + 1)
+  local text, rerr = f:read(M.MAX_BYTES + 1)
   f:close()
-  if text == nil then text = "" end
+  if text == nil then
+    if rerr then return nil, "calibration: " .. path .. ": " .. tostring(rerr) end
+    text = ""
+  end
   if #text > M.MAX_BYTES then
     return nil, "calibration: " .. path .. ": larger than " .. M.MAX_BYTES .. " bytes (a"
       .. " calibration is a few lines)"

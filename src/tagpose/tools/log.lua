@@ -43,6 +43,8 @@ M.CORNER_COLUMNS = { "frame", "tag", "u1", "v1", "u2", "v2", "u3", "v3", "u4", "
 M.POSE_COLUMNS = { "frame", "tag", "x", "y", "z", "qw", "qx", "qy", "qz", "error", "iterations" }
 --- Longest line (or quoted field across lines) read, in bytes; a longer one is reported.
 M.MAX_RECORD = 1048576
+--- Most columns a header may name.
+M.MAX_COLUMNS = 10000
 
 local CHUNK = 65536
 local QUOTE, COMMA, HASH, SPACE, TAB = 34, 44, 35, 32, 9
@@ -88,9 +90,10 @@ end
 
 function Lines:load()
   if self.eof then return false end
-  local chunk = self.f:read(CHUNK)
+  local chunk, err = self.f:read(CHUNK)
   if chunk == nil or chunk == "" then
     self.eof = true
+    self.err = err
     self.buf, self.pos = "", 1
     return false
   end
@@ -286,14 +289,20 @@ function M.csv_reader(source, required)
   local lines, err = open_lines(source)
   if not lines then return nil, "log: " .. tostring(err) end
   local self = setmetatable({ lines = lines }, Csv)
-  local header, line, count = self:record(huge)
+  local header, line, count = self:record(M.MAX_COLUMNS)
   if header == false then
     lines:close()
     return nil, "log: header: " .. count .. " (line " .. line .. ")"
   end
   if header == nil then
     lines:close()
+    if lines.err then return nil, "log: " .. tostring(lines.err) end
     return nil, "log: no header line"
+  end
+  if count > M.MAX_COLUMNS then
+    lines:close()
+    return nil, "log: header has " .. count .. " columns, more than " .. M.MAX_COLUMNS
+      .. " (line " .. line .. ")"
   end
   local column = {}
   for i = 1, count do

@@ -527,6 +527,11 @@ local ROTATION = {
 -- figure's resolution: memory stays bounded and no outlier is dropped.
 M.MAX_POINTS = 1024
 
+--- Most series a `recorder` keeps (one per source and track); the points of further series are
+-- counted in its `skipped`, not drawn (a log whose every row carries a new tag id must not fill
+-- memory with series).
+M.MAX_SERIES = 256
+
 -- tracks: keeping apart the tags that share an id
 
 local Tracker = {}
@@ -637,7 +642,8 @@ Recorder.__index = Recorder
 --   (default `MAX_POINTS`)
 -- @treturn table the recorder: `source(label[, dash])` → a source index; `add(source, tag,
 --   slot, frame, pose)` (a `nil` pose is a gap: a failed row); `dropped` counts the points
---   that came out of frame order once a series was bucketed (not drawn)
+--   that came out of frame order once a series was bucketed, `skipped` those of series past
+--   `MAX_SERIES` (neither is drawn)
 function M.recorder(options)
   options = options or {}
   local rotation = options.rotation or "quaternion"
@@ -648,7 +654,8 @@ function M.recorder(options)
   local names = { "x", "y", "z" }
   for _, r in ipairs(ROTATION[rotation]) do names[#names + 1] = r.name end
   return setmetatable({ rotation = rotation, names = names, sources = {}, series = {},
-    order = {}, max_points = options.max_points or M.MAX_POINTS, dropped = 0 }, Recorder)
+    order = {}, max_points = options.max_points or M.MAX_POINTS, dropped = 0, skipped = 0 },
+    Recorder)
 end
 
 function Recorder:source(name, dash)
@@ -726,6 +733,10 @@ function Recorder:add(source, tag, slot, frame, pose)
   local names = self.names
   local nv = #names
   if not s then
+    if #self.order >= M.MAX_SERIES then
+      self.skipped = self.skipped + 1
+      return
+    end
     s = { source = source, tag = tag, slot = slot, n = 0, x = {}, v = {}, names = names,
       max_points = self.max_points, recorder = self, drawn = false }
     for c = 1, nv do s.v[c] = {} end

@@ -60,6 +60,8 @@ local MAX_TRACKS = 16
 local LISTED = 20
 --- Most distinct reasons counted.
 local REASONS = 50
+--- Most distinct tag ids the summary keeps (a log may carry a new id on every row).
+local MAX_IDS = 10000
 
 local UNITS = { m = true, cm = true, mm = true, ["in"] = true, ft = true }
 
@@ -465,7 +467,7 @@ local function run(arg)
   local rows, solved = 0, 0
   local failures, malformed = tally(), tally()
   local errors, iterations = histogram(), {}
-  local tags, ntags = {}, 0
+  local tags, ntags, more_tags = {}, 0, false
   local first_frame, last_frame
   local repeated = { rows = 0, max = 1, tags = {}, ntags = 0, first = nil }
   local order = { rows = 0, first = nil }
@@ -503,7 +505,7 @@ local function run(arg)
         repeated.rows = repeated.rows + #list + (before == 1 and 1 or 0)
         repeated.first = repeated.first or list[before == 0 and 2 or 1].line
         if now > repeated.max then repeated.max = now end
-        if not repeated.tags[tag] then
+        if not repeated.tags[tag] and repeated.ntags < MAX_IDS then
           repeated.tags[tag] = true
           repeated.ntags = repeated.ntags + 1
         end
@@ -558,8 +560,12 @@ local function run(arg)
         note(failures, { line = row.line, frame = row.frame, tag = row.tag, reason = row.reason })
       end
       if not tags[row.tag] then
-        tags[row.tag] = true
-        ntags = ntags + 1
+        if ntags < MAX_IDS then
+          tags[row.tag] = true
+          ntags = ntags + 1
+        else
+          more_tags = true
+        end
       end
       if not first_frame or row.frame < first_frame then first_frame = row.frame end
       if not last_frame or row.frame > last_frame then last_frame = row.frame end
@@ -614,9 +620,9 @@ local function run(arg)
   say("  method %s, %s", opt.method or "refined", opt.max_gap
     and ("tracking each tag from its pose up to %s frame%s before"):format(number(opt.max_gap),
       opt.max_gap == 1 and "" or "s") or "no tracking")
-  say("rows       %d%s", rows, rows > 0 and (" (%d tag%s: %s; frames %s to %s)"):format(ntags,
-    ntags == 1 and "" or "s", table.concat(tag_names, ", "), number(first_frame),
-    number(last_frame)) or "")
+  say("rows       %d%s", rows, rows > 0 and (" (%s%d tag%s: %s; frames %s to %s)"):format(
+    more_tags and "more than " or "", ntags, ntags == 1 and "" or "s",
+    table.concat(tag_names, ", "), number(first_frame), number(last_frame)) or "")
   say("solved     %d", solved)
   say("failed     %d", failures.n)
   local function list_reasons(t, what)
@@ -713,6 +719,10 @@ local function run(arg)
       #shown.tags == 1 and "" or "s", nsources, nsources == 1 and "" or "s")
     if recorder.dropped > 0 then
       say("  %d points out of frame order not drawn", recorder.dropped)
+    end
+    if recorder.skipped > 0 then
+      say("  %d points of tracks past the first %d not drawn", recorder.skipped,
+        plot.MAX_SERIES)
     end
   end
   return 0
