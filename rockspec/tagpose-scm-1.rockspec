@@ -33,12 +33,14 @@ build = {
     ["tagpose.block.identity"] = "src/tagpose/block/identity.lua",
     ["tagpose.block.options"] = "src/tagpose/block/options.lua",
     ["tagpose.block.scene"] = "src/tagpose/block/scene.lua",
+    ["tagpose.calibration"] = "src/tagpose/calibration.lua",
     ["tagpose.camera"] = "src/tagpose/camera.lua",
     ["tagpose.compat"] = "src/tagpose/compat.lua",
     ["tagpose.cube"] = "src/tagpose/cube.lua",
     ["tagpose.ippe"] = "src/tagpose/ippe.lua",
     ["tagpose.lens"] = "src/tagpose/lens.lua",
     ["tagpose.lsq"] = "src/tagpose/lsq.lua",
+    ["tagpose.luadata"] = "src/tagpose/luadata.lua",
     ["tagpose.pipeline"] = "src/tagpose/pipeline.lua",
     ["tagpose.poly"] = "src/tagpose/poly.lua",
     ["tagpose.pose"] = "src/tagpose/pose.lua",
@@ -48,6 +50,7 @@ build = {
     ["tagpose.solvequad"] = "src/tagpose/solvequad.lua",
     ["tagpose.square"] = "src/tagpose/square.lua",
     ["tagpose.track"] = "src/tagpose/track.lua",
+    ["tagpose.yaml"] = "src/tagpose/yaml.lua",
   },
 }
 test = {

@@ -86,6 +86,30 @@ describe("tagpose.tools.plot", function()
       assert.is_true(#plot.ticks(2, 2) >= 1)
     end)
 
+    it("always gives at least three labelled ticks, distinct as printed", function()
+      local ranges = { { -0.0423, 0.0446, 2 }, { 0, 1, 1 }, { 0.999, 1.001, 1 }, { 2, 2, 2 },
+        { -1e-9, 1e-9, 1 }, { 0.11, 0.19, 1 }, { -1, 0, 1 }, { 37, 1051, 2 }, { 0, 0, 1 },
+        { 0.9001, 0.9003, 3 } }
+      for _, r in ipairs(ranges) do
+        local ticks, step, decimals = plot.ticks(r[1], r[2], r[3])
+        local label = ("ticks(%g, %g, %g)"):format(r[1], r[2], r[3])
+        assert.is_true(#ticks >= 3, label .. " gives " .. #ticks)
+        local lo, hi = r[1], r[2]
+        if lo == hi then
+          local pad = lo ~= 0 and 0.1 * math.abs(lo) or 1
+          lo, hi = lo - pad, hi + pad
+        end
+        local seen = {}
+        for k, v in ipairs(ticks) do
+          assert.is_true(v >= lo - 1e-9 * step and v <= hi + 1e-9 * step, label)
+          if k > 1 then assert.near(step, v - ticks[k - 1], 1e-9 * step, label) end
+          local text = ("%." .. decimals .. "f"):format(v)
+          assert.is_nil(seen[text], label .. ": label " .. text .. " twice")
+          seen[text] = true
+        end
+      end
+    end)
+
     it("rejects a range that is not finite or reversed", function()
       assert.has_error(function() plot.ticks(0 / 0, 1) end,
         "bad argument #1 to 'ticks' (finite number expected, got number " .. tostring(0 / 0)
@@ -235,6 +259,125 @@ describe("tagpose.tools.plot", function()
           .. " string euler)")
       assert.has_error(function() plot.poses({}, { width = 10 }) end,
         "bad argument #2 to 'poses' (options.width: number >= 100 expected, got number 10)")
+    end)
+  end)
+
+  describe("poses(), honestly", function()
+    -- the y coordinates of the points of every polyline of a series, in order
+    local function polylines(svg, name, tag)
+      local out = {}
+      local text = panel(svg, name)
+      for group, body in text:gmatch('(<g class="series"[^>]*>)(.-)</g>') do
+        if group:find('data-tag="' .. tag .. '"', 1, true) then
+          for pts in body:gmatch('<polyline points="([^"]*)"') do
+            local ys = {}
+            for y in pts:gmatch("[%d.%-]+,([%d.%-]+)") do ys[#ys + 1] = tonumber(y) end
+            out[#out + 1] = ys
+          end
+        end
+      end
+      return out
+    end
+
+    it("keeps the quaternion's sign continuous along a track (poses keep w >= 0)", function()
+      -- a turn about z through 180 degrees: the stored quaternion flips sign at w = 0
+      local e = {}
+      for k = 0, 40 do
+        local a = rad(160 + k)
+        local w, z = cos(a / 2), sin(a / 2)
+        if w < 0 then w, z = -w, -z end
+        e[#e + 1] = { frame = k, tag = 1, pose = make_pose(0, 0, 1, w, 0, 0, z) }
+      end
+      local svg = plot.poses({ { label = "turn", entries = e } })
+      for _, name in ipairs({ "qw", "qz" }) do
+        local lines = polylines(svg, name, "1")
+        assert.equal(1, #lines, name .. ": one unbroken line")
+        local ys, jump = lines[1], 0
+        for k = 2, #ys do jump = math.max(jump, math.abs(ys[k] - ys[k - 1])) end
+        -- one degree a frame moves a component by at most 0.0087: a few px of a 150 px panel
+        assert.is_true(jump < 15, name .. ": a jump of " .. jump .. " px")
+      end
+    end)
+
+    it("tells more than ten tags apart: colour, then marker", function()
+      local ids = {}
+      for k = 1, 45 do ids[k] = k end
+      local svg = plot.poses({ { label = "many", entries = entries(ids, 30) } })
+      assert_xml(svg)
+      local styles = {}
+      for group in panel(svg, "x"):gmatch('<g class="series"[^>]*>.-</g>') do
+        local colour = group:match('stroke="(#%x+)"')
+        local marker = group:match('data%-marker="(%a+)"') or "none"
+        local key = colour .. "/" .. marker
+        assert.is_nil(styles[key], "two tags drawn as " .. key)
+        styles[key] = true
+      end
+      assert.equal(45, run.count(panel(svg, "x"), '<g class="series"'))
+      -- the legend shows the marker of each tag past the tenth
+      assert.equal(35, run.count(svg:sub(1, svg:find('<g class="panel"', 1, true)),
+        'class="marker"'))
+    end)
+
+    it("keeps tags that share an id in a frame apart, by position", function()
+      local e = {}
+      for k = 0, 30 do
+        -- two tags, both id 0, swapping their order in the log every frame
+        local a = make_pose(-0.1, 0, 0.5 + 0.001 * k, 1, 0, 0, 0)
+        local b = make_pose(0.1, 0, 0.6 - 0.001 * k, 1, 0, 0, 0)
+        if k % 2 == 0 then a, b = b, a end
+        e[#e + 1] = { frame = k, tag = 0, pose = a }
+        e[#e + 1] = { frame = k, tag = 0, pose = b }
+      end
+      local svg, shown = plot.poses({ { label = "twins", entries = e } })
+      assert.equal(14, shown.series)
+      assert.truthy(svg:find(">tag 0 #1<", 1, true))
+      assert.truthy(svg:find(">tag 0 #2<", 1, true))
+      for _, ys in ipairs(polylines(svg, "x", "0")) do
+        for k = 2, #ys do assert.is_true(math.abs(ys[k] - ys[k - 1]) < 1, "no zig-zag") end
+      end
+    end)
+
+    it("shows in the legend only what is drawn", function()
+      local failed = { { frame = 1, tag = 9 }, { frame = 2, tag = 9 } }
+      local svg = plot.poses({ { label = "tagpose", entries = entries({ 1 }, 10) } })
+      assert.equal(1, run.count(svg, 'class="legend-label"'), "one source: no source entry")
+      svg = plot.poses({ { label = "tagpose", entries = entries({ 1 }, 10) },
+        { label = "nothing", entries = failed } })
+      assert.is_nil(svg:find(">tag 9<", 1, true), "a tag without a finite pose")
+      assert.is_nil(svg:find(">nothing<", 1, true), "a source without a finite pose")
+      svg = plot.poses({ { label = "tagpose", entries = entries({ 1 }, 10) },
+        { label = "truth", entries = entries({ 1 }, 10, 0.001) } })
+      assert.truthy(svg:find(">truth<", 1, true))
+      assert.truthy(svg:find(">tagpose<", 1, true))
+    end)
+
+    it("keeps a long series in bounded memory without losing its outliers", function()
+      local rec = plot.recorder()
+      local src = rec:source("long")
+      local n = 20 * plot.MAX_POINTS
+      for k = 1, n do
+        local x = k == 12345 and 5 or 0.01 * sin(k / 50)
+        rec:add(src, 1, 1, k, make_pose(x, 0, 1, 1, 0, 0, 0))
+      end
+      local svg = plot.draw(rec)
+      assert_xml(svg)
+      local points = 0
+      for pts in panel(svg, "x"):gmatch('<polyline points="([^"]*)"') do
+        points = points + select(2, pts:gsub(",", ""))
+      end
+      assert.is_true(points <= 2 * plot.MAX_POINTS, points .. " points drawn")
+      -- the spike is drawn: the axis reaches past 4 (the rest stays within 0.01)
+      assert.truthy(panel(svg, "x"):find(">4<", 1, true))
+      assert.equal(0, rec.dropped)
+    end)
+
+    it("keeps at most MAX_SERIES series, counting the points it leaves out", function()
+      local rec = plot.recorder()
+      local src = rec:source("ids")
+      for k = 1, plot.MAX_SERIES + 10 do rec:add(src, k, 1, 1, make_pose(0, 0, 1, 1, 0, 0, 0)) end
+      assert.equal(10, rec.skipped)
+      local _, shown = plot.draw(rec)
+      assert.equal(plot.MAX_SERIES, shown.tracks)
     end)
   end)
 

@@ -188,6 +188,163 @@ describe("bin/tagpose-replay", function()
   end)
 end)
 
+describe("bin/tagpose-replay on the inputs users have", function()
+  local geometry = require("support.geometry")
+
+  -- a corner log of known poses through a camera: rows {frame, tag, size} -> text and truth
+  local function scene(camera, rows, seed)
+    local rng = geometry.rng(seed)
+    local lines, truth = { "frame,tag,u1,v1,u2,v2,u3,v3,u4,v4" }, {}
+    for _, row in ipairs(rows) do
+      local r, t = geometry.random_pose(rng, camera, row[3], { width = 80, max_tilt = 0.7,
+        u = rng.uniform(200, 440), v = rng.uniform(150, 330) })
+      local c = assert(geometry.project(camera, r, t, row[3]))
+      lines[#lines + 1] = ("%d,%d,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g"):format(row[1],
+        row[2], c[1][1], c[1][2], c[2][1], c[2][2], c[3][1], c[3][2], c[4][1], c[4][2])
+      truth[#truth + 1] = t
+    end
+    return table.concat(lines, "\n") .. "\n", truth
+  end
+
+  local function replay_poses(...)
+    local out = tmp("poses.csv")
+    local text, status = run.script("bin/tagpose-replay", "--out", out, ...)
+    local poses = status == 0 and assert(log.read_poses(out)) or nil
+    os.remove(out)
+    return poses, text, status
+  end
+
+  it("reads ROS camera_calibration YAML with --camera, its lens used", function()
+    local camera = { fx = 615.925860, fy = 617.133667, cx = 320.578442, cy = 240.213862,
+      distortion = { k1 = 0.111906, k2 = -0.173451, p1 = 0.002114, p2 = 0.000813, k3 = 0 } }
+    local text, truth = scene(camera, { { 1, 3, 0.05 }, { 2, 3, 0.05 }, { 3, 4, 0.05 } }, 21)
+    local path = run.write(tmp("corners.csv"), text)
+    local poses, summary, status = replay_poses(path, "--camera",
+      "spec/fixtures/calibration/ost.yaml", "--tag-size", "0.05")
+    os.remove(path)
+    assert.equal(0, status, summary)
+    assert.truthy(summary:find("camera spec/fixtures/calibration/ost.yaml (ros): fx 615.926", 1,
+      true), summary)
+    assert.truthy(summary:find("Brown-Conrady lens k1 0.111906", 1, true), summary)
+    for i, t in ipairs(truth) do
+      assert.vector_near({ x = t[1], y = t[2], z = t[3] }, poses[i].pose.position, 1e-6)
+    end
+  end)
+
+  it("takes per-id tag sizes from a Lua camera file, and OpenCV's distortion array", function()
+    local camera = { fx = 700, fy = 700, cx = 319.5, cy = 239.5,
+      distortion = { k1 = -0.28, k2 = 0.07, p1 = 5e-4, p2 = -3e-4, k3 = 0 } }
+    local text, truth = scene(camera, { { 1, 3, 0.05 }, { 1, 7, 0.1 }, { 2, 3, 0.05 },
+      { 2, 9, 0.1 }, { 3, 5, 0.02 } }, 22)
+    local dir = tmp("dir")
+    assert.equal(0, select(2, run.run("mkdir " .. run.quote(dir))))
+    local path = run.write(dir .. "/corners.csv", text)
+    run.write(dir .. "/camera.lua", "return { fx = 700, fy = 700, cx = 319.5, cy = 239.5,\n"
+      .. "  distortion = { -0.28, 0.07, 5e-4, -3e-4, 0 },\n"
+      .. "  tag_size = { [3] = 0.05, [5] = 0.02, default = 0.1 } }\n")
+    local poses, summary, status = replay_poses(path)
+    run.run("rm -r " .. run.quote(dir))
+    assert.equal(0, status, summary)
+    assert.truthy(summary:find("tag size 0.1 (default), 0.05 (tag 3), 0.02 (tag 5) m", 1, true),
+      summary)
+    assert.equal(5, #poses)
+    for i, t in ipairs(truth) do
+      assert.vector_near({ x = t[1], y = t[2], z = t[3] }, poses[i].pose.position, 1e-6)
+    end
+  end)
+
+  it("refuses a camera file that would run: it never hangs", function()
+    for _, body in ipairs({ "while true do end", "return { fx = string.rep('x', 2^31) }",
+      "local t = {} for i = 1, 1e12 do t[i] = i end return t" }) do
+      local cam = run.write(tmp("camera.lua"), body)
+      local text, status = run.script("bin/tagpose-replay", LOG, "--camera", cam)
+      os.remove(cam)
+      assert.equal(1, status, text)
+      assert.truthy(text:find("^replay: calibration: " .. cam:gsub("%p", "%%%0") .. ":1: "), text)
+    end
+  end)
+
+  it("keeps tags that share an id apart: the same poses as with their own ids", function()
+    -- the bundled approach with both tags relabelled 0
+    local lines = {}
+    for line in run.read(LOG):gmatch("[^\n]+") do
+      if line:match("^%d") then line = line:gsub("^(%d+),%d+,", "%1,0,") end
+      lines[#lines + 1] = line
+    end
+    local same = run.write(tmp("same.csv"), table.concat(lines, "\n") .. "\n")
+    local svg = tmp("same.svg")
+    local camera = "examples/data/camera.lua"
+    local poses, text, status = replay_poses(same, "--camera", camera, "--track", "--svg", svg)
+    local figure = run.read(svg)
+    os.remove(same)
+    os.remove(svg)
+    assert.equal(0, status, text)
+    assert.truthy(text:find("repeated   354 rows share their frame and tag with another row"
+      .. " (tag 0, up to 2 in a frame; first at line 5): kept apart as tracks by image position",
+      1, true), text)
+    assert.truthy(text:find("(7 panels, 14 series: 2 tracks of 1 tag x 1 log)", 1, true), text)
+    assert.truthy(figure:find(">tag 0 #2<", 1, true))
+    -- tracking fed each tag its own previous pose: the poses of the log with distinct ids
+    local own = assert(replay_poses(LOG, "--track"))
+    assert.equal(#own, #poses)
+    for i = 1, #own do assert.same(own[i].pose, poses[i].pose, "row " .. i) end
+  end)
+
+  it("names the log in the title and the tag size's unit on the axes", function()
+    local svg = tmp("plot.svg")
+    local text, status = run.script("bin/tagpose-replay", LOG, "--tag-size", "24mm", "--svg",
+      svg, "--out", "-")
+    local figure = run.read(svg)
+    os.remove(svg)
+    assert.equal(0, status, text)
+    assert.truthy(figure:find(">replay of data/approach.csv<", 1, true))
+    assert.truthy(figure:find(">x (mm)<", 1, true))
+    assert.truthy(text:find("tag size 24 mm", 1, true), text)
+    -- poses in mm: the first row's depth, against the metres of the camera file's size
+    local mm = text:match("\n0,1,[^,]+,[^,]+,([^,]+),")
+    local m = assert(replay_poses(LOG))[1].pose.position.z
+    assert.near(1000 * m, tonumber(mm), 1e-9 * 1000 * m)
+    text = run.script("bin/tagpose-replay", LOG, "--tag-size", "24parsecs")
+    assert.truthy(text:find("--tag-size: positive number (with an optional unit m, cm, mm, in, ft)"
+      .. " expected, got 24parsecs", 1, true), text)
+  end)
+
+  it("reports nan in the tag column and a glued row, and goes on", function()
+    local path = run.write(tmp("corners.csv"), "frame,tag,u1,v1,u2,v2,u3,v3,u4,v4\n"
+      .. "1,nan,280,280,360,280,360,200,280,200\n"
+      .. "2,7,280,280,360,280,360,200,280,200.0000"
+      .. "3,7,280,280,360,280,360,200,280,200\n"
+      .. "4,7,280,280,360,280,360,200,280,200\n")
+    local poses, text, status = replay_poses(path, "--camera", "examples/data/camera.lua")
+    os.remove(path)
+    assert.equal(0, status, text)
+    assert.truthy(text:find("  line 2: column tag is not finite (nan)", 1, true), text)
+    assert.truthy(text:find("  line 3: 19 fields, header has 10", 1, true), text)
+    assert.equal(1, #poses)
+    assert.equal(4, poses[1].frame)
+  end)
+
+  it("reads, solves and writes row by row: memory does not grow with the log", function()
+    local peaks = {}
+    for _, rows in ipairs({ 1000, 4000 }) do
+      local dir = tmp("long" .. rows)
+      assert.equal(0, select(2, run.run("mkdir " .. run.quote(dir))))
+      assert.equal(0, select(2, run.script("bench/make_long_log.lua", dir, rows)))
+      local out, status = run.run(run.quote(run.lua()) .. " spec/support/peak_heap.lua "
+        .. run.quote(dir .. "/corners.csv") .. " --track --out " .. run.quote(dir .. "/p.csv")
+        .. " 2>&1 >/dev/null")
+      run.run("rm -r " .. run.quote(dir))
+      assert.equal(0, status, out)
+      local kib, solves = out:match("peak heap (%d+) KiB over (%d+) solves")
+      assert.equal(rows, tonumber(solves), out)
+      peaks[#peaks + 1] = tonumber(kib)
+    end
+    -- reading the whole log first costs several KiB a row (10 MB more here)
+    assert.is_true(peaks[2] < peaks[1] + 4096, ("peak heap %d KiB for 1000 rows, %d KiB for"
+      .. " 4000"):format(peaks[1], peaks[2]))
+  end)
+end)
+
 describe("examples/data", function()
   it("is what make_approach.lua makes", function()
     local dir = tmp("data")

@@ -65,4 +65,29 @@ function M.is_finite(v)
   return type(v) == "number" and v == v and v < huge and v > -huge
 end
 
+local find, byte = string.find, string.byte
+
+--- The number a decimal numeral denotes, the same on every VM; `nil` for anything else.
+-- The numeral is `[-+] digits [. [digits]] [(e|E) [-+] digits]` or the same with no digits
+-- before the point (`.5`); no spaces, no hexadecimal, no `inf` or `nan` (Lua 5.1 and LuaJIT
+-- read those through `strtod`, 5.3 and 5.4 do not). A whole numeral of 16 digits or more,
+-- which 5.3's integers would hold exactly and doubles round, is the nearest double on every
+-- VM. An exponent out of range gives ±infinity (or 0), as `tonumber` does. The scan is
+-- linear in the length of `s`.
+-- @tparam string s
+-- @treturn number|nil
+function M.decimal(s)
+  -- tonumber reads every decimal numeral; what it reads beyond them (hexadecimal, inf and nan
+  -- through strtod on 5.1 and LuaJIT, a string cut at a zero byte on 5.1) has other characters
+  local v = tonumber(s)
+  if v == nil or find(s, "[^%d%.eE+%-]") then return nil end
+  if #s >= 16 and not find(s, "[%.eE]") then
+    local _, e = find(s, "^[+-]?%d+")
+    if e - (byte(s, 1) < 48 and 1 or 0) >= 16 then
+      return tonumber(s .. "e0") -- a double on every VM, as 5.1 and LuaJIT read it
+    end
+  end
+  return v
+end
+
 return M
