@@ -1,0 +1,146 @@
+--- The joint fit of a rigid set of points through the lens, on flat arrays: the kernel under
+-- `tagpose.layout.solve` (and, in time, under `tagpose.block`'s hypotheses).
+--
+-- `fit` is `tagpose.rigid.fit` (Levenberg-Marquardt over the six pose parameters, the rotation
+-- updated on the left by the Cayley transform of a rotation vector, with the optional axis and
+-- plane priors) followed by one linearisation at the result, so that the caller gets the final
+-- normal equations for the covariance and the confidence. The normal equations are packed as
+-- `tagpose.refine` packs them, pixel terms only (no prior):
+--
+--     N[1..21]   the upper triangle of JᵀJ over (δω, δt), row by row
+--     N[22..27]  the gradient Jᵀr
+--
+-- in pixel units, δω a small left rotation vector in the camera frame and δt the move of the
+-- body origin in the camera frame. `covariance` turns them into the 6×6 covariance, ordered
+-- (x, y, z, rx, ry, rz) as ROS `PoseWithCovariance`.
+--
+-- Rotations are flat, row-major 3×3 (body → camera); body points are flat `{x1, y1, z1, ...}`;
+-- pixels are flat `{u1, v1, u2, v2, ...}`.
+-- @module tagpose.layout.fit
+
+local camera_model = require("tagpose.camera")
+local refine = require("tagpose.refine")
+local rigid = require("tagpose.rigid")
+local linsolve = require("tagpose.linsolve")
+
+local huge = math.huge
+local lens = camera_model.lens
+local accumulate = refine.accumulate
+
+local M = {}
+
+-- the camera constants as tagpose.refine packs them: fx, fy, cx, cy, an unused slot, the lens
+-- kind and its 8 coefficients
+local K = {}
+
+local function constants(camera)
+  K[1], K[2], K[3], K[4], K[5] = camera.fx, camera.fy, camera.cx, camera.cy, 0
+  K[6], K[7], K[8], K[9], K[10], K[11], K[12], K[13], K[14] = lens(camera)
+  for i = 7, 14 do
+    if K[i] == nil then K[i] = 0 end
+  end
+  return K
+end
+
+--- The normal equations of a pose over points 1..n (pixel terms only).
+-- @tparam table camera a checked camera
+-- @tparam {number,...} points body points, flat
+-- @tparam {number,...} px observed pixels, flat
+-- @tparam int n number of points
+-- @tparam {number,...} r flat body → camera rotation
+-- @tparam number tx the body origin in the camera frame
+-- @tparam number ty
+-- @tparam number tz
+-- @tparam {number,...} N array to fill with the 27 numbers of the module's header
+-- @treturn number the sum of squared pixel residuals (`math.huge` when a point is not in
+--   front of the camera; N is then incomplete)
+function M.normal(camera, points, px, n, r, tx, ty, tz, N)
+  local C = constants(camera)
+  local r1, r2, r3, r4, r5, r6, r7, r8, r9 = r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8], r[9]
+  for k = 1, 27 do N[k] = 0 end
+  local s = 0
+  for k = 1, n do
+    local b = 3 * k
+    local a1, a2, a3 = points[b - 2], points[b - 1], points[b]
+    s = s + accumulate(N, C, r1 * a1 + r2 * a2 + r3 * a3, r4 * a1 + r5 * a2 + r6 * a3,
+      r7 * a1 + r8 * a2 + r9 * a3, tx, ty, tz, px[2 * k - 1], px[2 * k])
+    if not (s < huge) then return huge end
+  end
+  return s
+end
+
+--- Fit the pose of a rigid set of points to their pixels, in place.
+-- @tparam table camera a checked camera
+-- @tparam {number,...} points body points, flat `{x1, y1, z1, ...}`
+-- @tparam {number,...} px their observed pixels, flat `{u1, v1, ...}`
+-- @tparam int n number of points (at least 3, not all on one line through the camera)
+-- @tparam {number,...} r flat body → camera rotation: the start, replaced by the result
+-- @tparam number tx start translation (the body origin in the camera frame)
+-- @tparam number ty
+-- @tparam number tz
+-- @tparam[opt] int max_iterations bound on linearisations (default `tagpose.rigid`'s)
+-- @tparam[opt] {number,...} prior the priors of `tagpose.rigid.fit`
+-- @tparam[opt] {number,...} N when given, filled with the normal equations at the result
+-- @treturn number tx
+-- @treturn number ty
+-- @treturn number tz
+-- @treturn number the cost at the result (squared pixel residuals plus the priors' terms;
+--   `math.huge` when the start puts a point behind the camera)
+-- @treturn int linearisations used
+-- @treturn number the sum of squared pixel residuals alone at the result
+function M.fit(camera, points, px, n, r, tx, ty, tz, max_iterations, prior, N)
+  local cost, k
+  tx, ty, tz, cost, k = rigid.fit(camera, points, px, n, r, tx, ty, tz, max_iterations, prior)
+  if not (cost < huge) then return tx, ty, tz, huge, k, huge end
+  local sse
+  if N then
+    sse = M.normal(camera, points, px, n, r, tx, ty, tz, N)
+  else
+    sse = rigid.cost(camera, points, px, 1, n, r, tx, ty, tz)
+  end
+  return tx, ty, tz, cost, k, sse
+end
+
+--- Sum of squared pixel residuals of points first..last at a pose (`tagpose.rigid.cost`).
+-- @function cost
+M.cost = rigid.cost
+
+local work, rhs = {}, {}
+
+-- integration: until tagpose.uncertainty lands, the textbook covariance σ²·H⁻¹ of the
+-- Gauss-Newton normal equations; the lead swaps this for the shared module.
+--- The covariance of a pose from its normal equations: `σ²·H⁻¹`, reordered to
+-- (x, y, z, rx, ry, rz).
+-- @tparam {number,...} N the normal equations (as `normal` fills them)
+-- @tparam number sigma the standard deviation of the pixel noise
+-- @treturn table nested 6×6 `covariance[i][j]`
+-- @return nil, string when H is singular (the points do not fix the pose)
+function M.covariance(N, sigma)
+  -- H over (δω, δt), full, row-major
+  local k = 0
+  for i = 1, 6 do
+    for j = i, 6 do
+      k = k + 1
+      work[(i - 1) * 6 + j], work[(j - 1) * 6 + i] = N[k], N[k]
+    end
+  end
+  for i = 1, 36 do rhs[i] = 0 end
+  for i = 1, 6 do rhs[(i - 1) * 6 + i] = 1 end
+  local inv, why = linsolve.solve(6, work, rhs, 6)
+  if not inv then return nil, "layout: " .. why:gsub("^linsolve: ", "") end
+  -- (ω, t) → (t, ω)
+  local s2 = sigma * sigma
+  local out = {}
+  for i = 1, 6 do
+    local a = i <= 3 and i + 3 or i - 3
+    local row = {}
+    for j = 1, 6 do
+      local b = j <= 3 and j + 3 or j - 3
+      row[j] = s2 * inv[(a - 1) * 6 + b]
+    end
+    out[i] = row
+  end
+  return out
+end
+
+return M
