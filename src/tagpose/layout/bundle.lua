@@ -441,6 +441,19 @@ function M.apply(P, S, D, T)
   return T
 end
 
+--- The decrease of the cost a step promises to first order, `-(g·δ)`: twice the decrease of
+-- the Gauss-Newton model for an undamped step.
+-- @tparam table P the problem (its gradient from `linearise`)
+-- @tparam table D the step
+-- @treturn number
+function M.promise(P, D)
+  local s = 0
+  local gA, gC, x, y = P.gA, P.gC, D.x, D.y
+  for k = 1, 6 * P.nframes do s = s - gA[k] * x[k] end
+  for k = 1, 6 * P.ntags do s = s - gC[k] * y[k] end
+  return s
+end
+
 --- The largest move a step gives a corner of a tag on the body (length units): the size of
 -- the step in the layout.
 -- @tparam table P the problem

@@ -36,6 +36,7 @@
 
 local rotation = require("tagpose.rotation")
 local compat = require("tagpose.compat")
+local args = require("tagpose.args")
 local model = require("tagpose.layout.model")
 local frame = require("tagpose.layout.solve")
 local bundle = require("tagpose.layout.bundle")
@@ -57,27 +58,35 @@ M.ROBUST = 3
 --- An iteration that lowers the cost by less than `COST_TOLERANCE·s²` ends a stage, `s²` the
 -- cost per degree of freedom (≈ σ²): a change of the fit's χ² far below its statistical spread.
 M.COST_TOLERANCE = 1e-3
+--- ... or by less than `ROUND_OFF`² (px²) per residual (exact corners).
+M.ROUND_OFF = 1e-10
 --- Median of χ² with 8 degrees of freedom over 8: the median squared residual per coordinate of
 -- a detection, in units of σ², when the fit takes nothing from it.
 local CHI2_8_MEDIAN = 0.9180
 --- With the gauge "planes", the weight of a tag's corners' distances from their nominal
 -- places within the tag's plane, against 1 for their distances from the plane.
-M.IN_PLANE = 1e-3
+M.IN_PLANE = 1e-8
 --- Detections whose robust weight falls below this are counted as outliers.
 M.OUTLIER_WEIGHT = 0.5
 
--- Count known, distinct ids of a frame (no solving): frames with fewer than two are no use.
+-- Count the known, distinct ids of a frame's usable detections (no solving: frames with fewer
+-- than two are no use), and its detections that are not usable (malformed, non-finite).
+local corners = {}
 local function known_ids(dets, tags)
-  local seen, n = {}, 0
+  local seen, n, bad = {}, 0, 0
   for i = 1, #dets do
     local d = dets[i]
     local id = type(d) == "table" and d.id or nil
-    if id ~= nil and tags[id] and not seen[id] then
-      seen[id] = true
-      n = n + 1
+    if id ~= nil and tags[id] then
+      if args.read_corners(d.corners, corners) ~= true then
+        bad = bad + 1
+      elseif not seen[id] then
+        seen[id] = true
+        n = n + 1
+      end
     end
   end
-  return n
+  return n, bad
 end
 
 -- Union-find over tag ids.
@@ -98,7 +107,8 @@ local function starts(frames, camera, tags)
   for fi = 1, #frames do
     local dets = frames[fi]
     counts.detections = counts.detections + #dets
-    local known = known_ids(dets, tags)
+    local known, bad = known_ids(dets, tags)
+    if known < 2 then counts.skipped = counts.skipped + bad end
     if known == 0 then
       counts.unknown = counts.unknown + 1
     elseif known == 1 then
@@ -231,12 +241,19 @@ local function adjust(P, S, T, c2, budget)
   local cost = bundle.cost(P, S, c2)
   local dof = max(8 * #P.of - 6 * P.nframes - 6 * (P.ntags - 1), 1)
   local lambda, used = 1e-3, 0
+  local floor = 8 * #P.of * M.ROUND_OFF ^ 2
+  local tolerance = max(M.COST_TOLERANCE * cost / dof, floor)
   while used < budget do
     bundle.linearise(P, S, c2)
     used = used + 1
-    local accepted, new = false, huge
+    local accepted, new, done = false, huge, false
     while not accepted do
       if bundle.step(P, lambda, D) then
+        -- a step that promises (to first order) less than the tolerance: converged
+        if bundle.promise(P, D) <= 0.5 * tolerance then
+          done = true
+          break
+        end
         bundle.apply(P, S, D, T)
         new = bundle.cost(P, T, c2)
         if new < cost then accepted = true end
@@ -254,7 +271,8 @@ local function adjust(P, S, T, c2, budget)
     local drop = cost - new
     cost = new
     lambda = max(lambda * 0.1, 1e-12)
-    if drop <= M.COST_TOLERANCE * cost / dof then break end
+    tolerance = max(M.COST_TOLERANCE * cost / dof, floor)
+    if drop <= tolerance or done then break end
   end
   return used, cost
 end

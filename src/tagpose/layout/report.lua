@@ -47,8 +47,10 @@ local function correction(n, c, entry)
   entry.angle, entry.axis = angle, { x = ax, y = ay, z = az }
   local w, _, _, qz = rotation.to_quaternion(rotation.transpose_multiply(r, c.r))
   entry.turn = 2 * atan2(qz, w)
-  local cz = r[3] * c.r[3] + r[6] * c.r[6] + r[9] * c.r[9]
-  entry.tilt = math.acos(math.min(1, math.max(-1, cz)))
+  -- the angle between the normals, from its sine and cosine (acos loses it near 0)
+  local a1, a2, a3, b1, b2, b3 = r[3], r[6], r[9], c.r[3], c.r[6], c.r[9]
+  local x1, x2, x3 = a2 * b3 - a3 * b2, a3 * b1 - a1 * b3, a1 * b2 - a2 * b1
+  entry.tilt = atan2(sqrt(x1 * x1 + x2 * x2 + x3 * x3), a1 * b1 + a2 * b2 + a3 * b3)
   return entry
 end
 

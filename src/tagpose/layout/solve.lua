@@ -7,8 +7,10 @@
 --    (`tagpose.layout.fit`: least squares over every corner through the lens) runs from the
 --    best.
 -- 3. Where the view is ambiguous — one tag, or only tags in one plane — the other branch is fit
---    too, from the other pose of the tag whose pose gave the best start; when it reaches a
---    distinct minimum, the better-fitting minimum is the pose and the other its `alternative`.
+--    too, from the tag's other pose (one tag) or from the minimum mirrored about the line of
+--    sight to the tags' centroid (the planar ambiguity of the whole plane, as IPPE has it for a
+--    square); when it reaches a distinct minimum, the better-fitting minimum is the pose and
+--    the other its `alternative`.
 --    Tags on planes at an angle leave no planar ambiguity: one pose.
 --
 -- The covariance is `σ²·H⁻¹` of the final normal equations, and the confidence of an ambiguous
@@ -87,6 +89,40 @@ local function coplanar(used, n)
     if d > limit then return false end
   end
   return true
+end
+
+-- The start of the other minimum of tags in one plane: the pose (r, t) mirrored about the line
+-- of sight v to the tags' centroid c, R' = (I - 2 v vᵀ)·R·(I - 2 n nᵀ) (n the plane's normal in
+-- the body), which keeps c and the plane's points' lines of sight; into out, and t'.
+local function mirror(used, n, r, tx, ty, tz, out)
+  local cx, cy, cz = 0, 0, 0
+  for i = 1, n do
+    local t = used[i].tag
+    cx, cy, cz = cx + t.x / n, cy + t.y / n, cz + t.z / n
+  end
+  local t1 = used[1].tag.r
+  local n1, n2, n3 = t1[3], t1[6], t1[9]
+  -- c in the camera, and v
+  local px = r[1] * cx + r[2] * cy + r[3] * cz + tx
+  local py = r[4] * cx + r[5] * cy + r[6] * cz + ty
+  local pz = r[7] * cx + r[8] * cy + r[9] * cz + tz
+  local d = sqrt(px * px + py * py + pz * pz)
+  local v1, v2, v3 = px / d, py / d, pz / d
+  -- R·(I - 2 n nᵀ): each row minus 2 (row·n) nᵀ; then (I - 2 v vᵀ) on the left
+  local m = {}
+  for row = 0, 6, 3 do
+    local k = 2 * (r[row + 1] * n1 + r[row + 2] * n2 + r[row + 3] * n3)
+    m[row + 1], m[row + 2], m[row + 3] = r[row + 1] - k * n1, r[row + 2] - k * n2,
+      r[row + 3] - k * n3
+  end
+  for col = 1, 3 do
+    local a, b, c = m[col], m[3 + col], m[6 + col]
+    local k = 2 * (v1 * a + v2 * b + v3 * c)
+    out[col], out[3 + col], out[6 + col] = a - k * v1, b - k * v2, c - k * v3
+  end
+  return px - (out[1] * cx + out[2] * cy + out[3] * cz),
+    py - (out[4] * cx + out[5] * cy + out[6] * cz),
+    pz - (out[7] * cx + out[8] * cy + out[9] * cz)
 end
 
 -- Add the body pose implied by a tag pose as start number k.
@@ -209,18 +245,21 @@ function M.solve(detections, camera, tags, o)
   local cost_a, k_a, sse_a, cost_b, k_b, sse_b
   ax, ay, az, cost_a, k_a, sse_a = fit.fit(camera, points, pixels, npts, r_a, ax, ay, az, max_it,
     nil, normal_a)
-  -- the other branch, where the view is ambiguous: the other pose of the same tag
-  local other = nil
-  if coplanar(used, n) then
+  -- the other branch, where the view is ambiguous: one tag's other pose, or the minimum
+  -- mirrored about the line of sight to the tags' plane
+  local other, bx, by, bz = nil, nil, nil, nil
+  if n == 1 then
     if best > 1 and start_of[best - 1] == start_of[best] then
       other = best - 1
     elseif best < starts and start_of[best + 1] == start_of[best] then
       other = best + 1
     end
+    if other then bx, by, bz = get_start(other, r_b) end
+  elseif coplanar(used, n) then
+    other = true
+    bx, by, bz = mirror(used, n, r_a, ax, ay, az, r_b)
   end
-  local bx, by, bz
   if other then
-    bx, by, bz = get_start(other, r_b)
     bx, by, bz, cost_b, k_b, sse_b = fit.fit(camera, points, pixels, npts, r_b, bx, by, bz,
       max_it, nil, normal_b)
     if not (cost_b < huge and finite(r_b, bx, by, bz, sse_b))

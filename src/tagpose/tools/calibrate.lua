@@ -11,7 +11,8 @@
 --              table id,size,x,y,z,qw,qx,qy,qz (.csv)
 -- --cube       instead: a cube of side BLOCK_SIZE with tags 0-5 of side TAG_SIZE centred on
 --              its faces +x, -x, +y, -y, +z, -z (tagpose.layout.cube)
--- --camera     a camera file (Lua, as tagpose-replay reads it); default camera.lua beside LOG
+-- --camera     a camera file (a Lua camera file, ROS camera_calibration or CameraInfo YAML, OpenCV
+--              FileStorage: tagpose.calibration); default camera.lua beside LOG.csv
 -- --out        write the calibrated layout, in the format its extension names
 -- --unit       the unit of the layout's lengths (default m): corrections are printed in mm
 --              for m, cm and mm, else in the unit
@@ -22,6 +23,7 @@
 -- @module tagpose.tools.calibrate
 
 local tagpose = require("tagpose")
+local calibration = require("tagpose.calibration")
 local log = require("tagpose.tools.log")
 
 local deg, abs = math.deg, math.abs
@@ -165,15 +167,13 @@ local function run(argv)
   end
   -- the camera and the nominal layout
   local camera_path = opt.camera or ((opt.log:match("^(.*)/[^/]*$") or ".") .. "/camera.lua")
-  local cam, cerr = log.read_camera(camera_path)
-  if not cam then
-    if not opt.camera then usage("no camera file " .. camera_path .. "; give --camera") end
-    fail(cerr)
+  if not opt.camera then
+    local probe = io.open(camera_path, "r")
+    if not probe then usage("no camera file " .. camera_path .. "; give --camera") end
+    probe:close()
   end
-  local camera = { fx = cam.fx, fy = cam.fy, cx = cam.cx, cy = cam.cy, model = cam.model,
-    distortion = cam.distortion }
-  local problem = tagpose.camera.check(camera)
-  if problem then fail(camera_path .. ": " .. problem) end
+  local camera, cerr = calibration.read(camera_path)
+  if not camera then fail(cerr) end
   local nominal, lerr
   if opt.cube then
     nominal = tagpose.layout.cube(opt.cube[1], opt.cube[2])
