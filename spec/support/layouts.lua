@@ -129,7 +129,8 @@ function L.look_at(c, target, up)
   local n = sqrt(z[1] ^ 2 + z[2] ^ 2 + z[3] ^ 2)
   z = { z[1] / n, z[2] / n, z[3] / n }
   -- x = z × up (right), y = z × x (down)
-  local x = { z[2] * up[3] - z[3] * up[2], z[3] * up[1] - z[1] * up[3], z[1] * up[2] - z[2] * up[1] }
+  local x = { z[2] * up[3] - z[3] * up[2], z[3] * up[1] - z[1] * up[3],
+    z[1] * up[2] - z[2] * up[1] }
   n = sqrt(x[1] ^ 2 + x[2] ^ 2 + x[3] ^ 2)
   x = { x[1] / n, x[2] / n, x[3] / n }
   local y = { z[2] * x[3] - z[3] * x[2], z[3] * x[1] - z[1] * x[3], z[1] * x[2] - z[2] * x[1] }
@@ -146,7 +147,8 @@ function L.session(layout, camera, rng, n, down, sigma)
   local up = { -down[1], -down[2], -down[3] }
   -- two horizontal axes
   local a = abs(up[1]) < 0.9 and { 1, 0, 0 } or { 0, 1, 0 }
-  local h1 = { up[2] * a[3] - up[3] * a[2], up[3] * a[1] - up[1] * a[3], up[1] * a[2] - up[2] * a[1] }
+  local h1 = { up[2] * a[3] - up[3] * a[2], up[3] * a[1] - up[1] * a[3],
+    up[1] * a[2] - up[2] * a[1] }
   local nh = sqrt(h1[1] ^ 2 + h1[2] ^ 2 + h1[3] ^ 2)
   h1 = { h1[1] / nh, h1[2] / nh, h1[3] / nh }
   local h2 = { up[2] * h1[3] - up[3] * h1[2], up[3] * h1[1] - up[1] * h1[3],
