@@ -86,7 +86,8 @@ end
 
 -- score one data set; returns the metrics table
 local function score(dir)
-  local camera = assert(log.read_camera(dir .. "/camera.lua"))
+  local camera, info = log.read_camera(dir .. "/camera.lua")
+  assert(camera, info)
   local rows, problems = log.read_corners(dir .. "/corners.csv")
   assert(rows, problems)
   assert(#problems == 0, "malformed corner rows in " .. dir)
@@ -108,7 +109,7 @@ local function score(dir)
       local prev = last[row.tag]
       options.prior = prev and prev.frame == row.frame - 1 and prev.pose or nil
     end
-    local pose = tagpose.solve(row.corners, camera, camera.tag_size, options)
+    local pose = tagpose.solve(row.corners, camera, info.tag_size, options)
     est[i] = false
     if pose then
       local p = pose.position

@@ -41,12 +41,13 @@ local dir = args.dir or "examples/data"
 local corners_file = args.dir and dir .. "/corners.csv" or dir .. "/approach.csv"
 local name = args.dir and dir:match("([^/]+)/*$") or "approach"
 
-local camera = assert(log.read_camera(dir .. "/camera.lua"))
+local camera, info = log.read_camera(dir .. "/camera.lua")
+assert(camera, info)
 local rows = assert(log.read_corners(corners_file))
 local n = #rows
 local corners = {}
 for i = 1, n do corners[i] = rows[i].corners end
-local tag_size = camera.tag_size
+local tag_size = info.tag_size
 local options = { method = args.method }
 
 -- --solve-only N: solve every row N times and stop, for instruction counters (callgrind): the

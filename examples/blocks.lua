@@ -94,9 +94,10 @@ local function exists(path)
   return f ~= nil
 end
 
-local camera = assert(log.read_camera(dir .. "/camera.lua"))
-local tag_size = assert(camera.tag_size, "camera.lua has no tag_size")
-local block_size = assert(camera.block_size, "camera.lua has no block_size")
+local camera, info = log.read_camera(dir .. "/camera.lua")
+assert(camera, info)
+local tag_size = assert(info.tag_size, "camera.lua has no tag_size")
+local block_size = assert(info.block_size, "camera.lua has no block_size")
 local rows, problems = log.read_corners(dir .. "/corners.csv")
 assert(rows, problems)
 for _, p in ipairs(problems) do

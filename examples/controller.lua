@@ -171,7 +171,8 @@ local function main(argv)
   path = path or "examples/data/approach.csv"
   camera_path = camera_path or (path:match("^(.*)/[^/]*$") or ".") .. "/camera.lua"
   if not (every and every >= 1) then every = 20 end
-  local camera = assert(log.read_camera(camera_path))
+  local camera, info = log.read_camera(camera_path)
+  if not camera then error(info) end
   local rows, problems = log.read_corners(path)
   if not rows then error(problems) end
   for _, p in ipairs(problems) do
@@ -191,7 +192,7 @@ local function main(argv)
       { x = c[2][1], y = c[2][2] }, { x = c[3][1], y = c[3][2] }, { x = c[4][1], y = c[4][2] } } }
   end
   table.sort(order)
-  local ctl = M.new(camera, camera.tag_size)
+  local ctl = M.new(camera, info.tag_size)
   local poses, failed, tracked = 0, 0, 0
   print(("%s: %d detections in %d frames, one step per frame"):format(path, #rows, #order))
   for k, frame in ipairs(order) do

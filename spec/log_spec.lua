@@ -1,4 +1,5 @@
 local log = require("tagpose.tools.log")
+local run = require("support.run")
 
 local function tmpfile(text)
   local path = os.tmpname()
@@ -141,16 +142,178 @@ describe("tagpose.tools.log", function()
   end)
 
   describe("read_camera()", function()
-    it("loads a camera file without access to globals", function()
-      local path = tmpfile("return { fx = 300, fy = 310, cx = 160, cy = 120, tag_size = 0.024 }")
-      local camera = assert(log.read_camera(path))
+    it("reads a camera file as data, through tagpose.calibration", function()
+      local path = os.tmpname() .. ".lua"
+      run.write(path, "return { fx = 300, fy = 310, cx = 160, cy = 120, tag_size = 0.024 }")
+      local camera, info = assert(log.read_camera(path))
       os.remove(path)
-      assert.same({ fx = 300, fy = 310, cx = 160, cy = 120, tag_size = 0.024 }, camera)
-      path = tmpfile("os.exit(3)")
+      assert.same({ fx = 300, fy = 310, cx = 160, cy = 120, model = "pinhole" }, camera)
+      assert.equal(0.024, info.tag_size)
+      run.write(path, "os.exit(3)")
       local ok, err = log.read_camera(path)
       os.remove(path)
       assert.is_nil(ok)
-      assert.truthy(err:find("attempt to index", 1, true))
+      assert.equal("calibration: " .. path .. ":1: an assignment or a call ('os.exit') is not"
+        .. " data: 'return { ... }' expected", err)
+    end)
+  end)
+
+  describe("corner_reader()", function()
+    local HEADER = "frame,tag,u1,v1,u2,v2,u3,v3,u4,v4"
+
+    -- every detection and problem of a log text, read row by row
+    local function read(text)
+      local path = tmpfile(text)
+      local reader, err = log.corner_reader(path)
+      if not reader then
+        os.remove(path)
+        return nil, err
+      end
+      local rows, problems = {}, {}
+      while true do
+        local det, line, reason = reader:read()
+        if det == nil then break end
+        if det then rows[#rows + 1] = det else problems[#problems + 1] = line .. ": " .. reason end
+      end
+      reader:close()
+      os.remove(path)
+      return rows, problems
+    end
+
+    it("refuses a row with too many fields: two rows glued by a lost line end", function()
+      local rows, problems = read(HEADER .. "\n1,0,1,2,3,4,5,6,7,114.4996"
+        .. "2,0,1,2,3,4,5,6,7,8\n3,0,1,2,3,4,5,6,7,8\n")
+      assert.same({ "2: 19 fields, header has 10" }, problems)
+      assert.equal(1, #rows)
+      assert.equal(3, rows[1].line)
+    end)
+
+    it("refuses a header that names a column twice or leaves one unnamed", function()
+      local rows, err = read("frame,tag,u1,v1,u2,v2,u3,v3,u4,v4,u1\n1,0,1,2,3,4,5,6,7,8,9\n")
+      assert.is_nil(rows)
+      assert.equal("log: header names column 'u1' twice (columns 3 and 11, line 1)", err)
+      rows, err = read("# comment\n" .. HEADER .. ",\n")
+      assert.is_nil(rows)
+      assert.equal("log: header column 11 has no name (line 2)", err)
+      rows, err = read("frame;tag;u1;v1;u2;v2;u3;v3;u4;v4\n")
+      assert.equal("log: header has no column 'frame' (line 1): its fields are separated by ';',"
+        .. " not commas", err)
+    end)
+
+    it("keeps line numbers apart from a column named 'line'", function()
+      local rows, problems = read(HEADER .. ",line\n1,0,1,2,3,4,5,6,7,8,abc\n"
+        .. "2,0,1,2,3,4,5,6,7,8,17\n")
+      assert.same({}, problems)
+      assert.same({ 2, 3 }, { rows[1].line, rows[2].line })
+      assert.same({ "abc", 17 }, { rows[1].fields.line, rows[2].fields.line })
+    end)
+
+    it("reports nan and inf in the frame or tag column, the same on every VM", function()
+      local rows, problems = read(HEADER .. "\n1,nan,1,2,3,4,5,6,7,8\nNaN,0,1,2,3,4,5,6,7,8\n"
+        .. "3,-inf,1,2,3,4,5,6,7,8\n4,1e999,1,2,3,4,5,6,7,8\n5,0x10,1,2,3,4,5,6,7,8\n"
+        .. "6,0,nan,2,3,4,5,6,7,inf\n")
+      assert.same({ "2: column tag is not finite (nan)", "3: column frame is not finite (NaN)",
+        "4: column tag is not finite (-inf)", "5: column tag is not finite (1e999)",
+        "6: column tag is not a number" }, problems)
+      -- corners that are not finite go to the solver, which refuses them
+      assert.equal(1, #rows)
+      local c = rows[1].corners
+      assert.is_true(c[1][1] ~= c[1][1])
+      assert.equal(math.huge, c[4][2])
+    end)
+
+    it("trims long runs of spaces in linear time", function()
+      local spaces = string.rep(" ", 80000)
+      local rows, problems = read(HEADER .. ",note\n1," .. spaces .. "0" .. spaces
+        .. ",1,2,3,4,5,6,7,8," .. spaces .. "\n2,0,1,2,3,4,5,6,7,8,a" .. spaces .. "b\n"
+        .. spaces .. "\n")
+      assert.same({}, problems)
+      assert.equal(2, #rows)
+      assert.equal(0, rows[1].tag)
+      assert.is_nil(rows[1].fields.note)
+      assert.equal(80002, #rows[2].fields.note)
+    end)
+
+    it("reads LF, CRLF and CR-only line ends and a UTF-8 byte-order mark alike", function()
+      local body = { HEADER, "1,0,1,2,3,4,5,6,7,8", "", "# c", "2,3,1,2,3,4,5,6,7,8" }
+      local want
+      for _, eol in ipairs({ "\n", "\r\n", "\r" }) do
+        for _, bom in ipairs({ "", "\239\187\191" }) do
+          local rows, problems = read(bom .. table.concat(body, eol) .. eol)
+          assert.same({}, problems)
+          local got = {}
+          for _, r in ipairs(rows) do got[#got + 1] = { r.frame, r.tag, r.line } end
+          want = want or got
+          assert.same({ { 1, 0, 2 }, { 2, 3, 5 } }, got)
+        end
+      end
+    end)
+
+    it("reads line ends split across the reader's chunks", function()
+      -- rows of 30 bytes with CRLF: some CR ends a 64 KiB chunk, its LF starts the next
+      local lines = { HEADER }
+      for i = 1, 5000 do lines[#lines + 1] = ("%5d,0,1,2,3,4,5,6,7,8.00000"):format(i) end
+      local rows, problems = read(table.concat(lines, "\r\n") .. "\r\n")
+      assert.same({}, problems)
+      assert.equal(5000, #rows)
+      for i = 1, 5000 do
+        assert.equal(i, rows[i].frame)
+        assert.equal(i + 1, rows[i].line)
+      end
+    end)
+
+    it("reads RFC 4180 quoted fields as a spreadsheet saves them", function()
+      local rows, problems = read('"frame","tag","u1","v1","u2","v2","u3","v3","u4","v4","note"\r\n'
+        .. '"1","0","1","2","3","4","5","6","7","8","a, ""quoted"" note"\r\n'
+        .. '2,0,1,2,3,4,5,6,7,8,"two\r\nlines"\r\n'
+        .. '3,0,1,2,3,4,5,6,7,8, "spaced" \r\n')
+      assert.same({}, problems)
+      assert.equal(3, #rows)
+      assert.equal('a, "quoted" note', rows[1].fields.note)
+      assert.equal("two\nlines", rows[2].fields.note)
+      assert.equal(5, rows[3].line)
+      assert.equal("spaced", rows[3].fields.note)
+    end)
+
+    it("reports quoting errors with the line and goes on", function()
+      local rows, problems = read(HEADER .. "\n1,0,1,2,3,4,5,6,7,\"8\"x\n"
+        .. '2,0,1,2,3,4,5,6,7,8"\n3,0,1,2,3,4,5,6,7,8\n4,0,1,2,3,4,5,6,7,"8\n')
+      assert.same({ "2: text after the closing quote of field 10",
+        '3: a quote inside field 10 (quote the whole field, with "" for a quote)',
+        "5: quoted field 10 not closed" }, problems)
+      assert.equal(1, #rows)
+      assert.equal(4, rows[1].line)
+    end)
+
+    it("reports a line longer than MAX_RECORD and reads on", function()
+      local rows, problems = read(HEADER .. "\n1,0,1,2,3,4,5,6,7,8"
+        .. string.rep("9", log.MAX_RECORD) .. "\n2,0,1,2,3,4,5,6,7,8\n")
+      assert.same({ "2: line longer than " .. log.MAX_RECORD .. " bytes" }, problems)
+      assert.equal(1, #rows)
+      assert.equal(3, rows[1].line)
+    end)
+  end)
+
+  describe("pose_writer() and pose_reader()", function()
+    it("write and read row by row", function()
+      local path = os.tmpname()
+      local writer = assert(log.pose_writer(path))
+      local pose = { position = { x = 0.5, y = -1, z = 2 },
+        quaternion = { w = 0.6, x = 0, y = 0.8, z = 0 }, error = 0.25, iterations = 3 }
+      for i = 1, 1000 do writer:write(i, 7, i % 3 ~= 0 and pose or nil) end
+      assert.equal(1000, writer:close())
+      local reader = assert(log.pose_reader(path))
+      local n, failed = 0, 0
+      while true do
+        local e = reader:read()
+        if e == nil then break end
+        n = n + 1
+        assert.equal(n, e.frame)
+        if e.pose then assert.same(pose, e.pose) else failed = failed + 1 end
+      end
+      reader:close()
+      os.remove(path)
+      assert.same({ 1000, 333 }, { n, failed })
     end)
   end)
 end)

@@ -62,40 +62,21 @@ local find, byte = string.find, string.byte
 -- read those through `strtod`, 5.3 and 5.4 do not). A whole numeral of 16 digits or more,
 -- which 5.3's integers would hold exactly and doubles round, is the nearest double on every
 -- VM. An exponent out of range gives ±infinity (or 0), as `tonumber` does. The scan is
--- linear in the length of `s` (one anchored `find` per part).
+-- linear in the length of `s`.
 -- @tparam string s
 -- @treturn number|nil
 function M.decimal(s)
-  local p = 1
-  local b = byte(s, 1)
-  if b == 43 or b == 45 then p = 2 end -- + -
-  local _, e = find(s, "^%d*", p)
-  local int_digits = e - p + 1
-  p = e + 1
-  local point = byte(s, p) == 46
-  local frac_digits = 0
-  if point then
-    _, e = find(s, "^%d*", p + 1)
-    frac_digits = e - p
-    p = e + 1
+  -- tonumber reads every decimal numeral; what it reads beyond them (hexadecimal, inf and nan
+  -- through strtod on 5.1 and LuaJIT, a string cut at a zero byte on 5.1) has other characters
+  local v = tonumber(s)
+  if v == nil or find(s, "[^%d%.eE+%-]") then return nil end
+  if #s >= 16 and not find(s, "[%.eE]") then
+    local _, e = find(s, "^[+-]?%d+")
+    if e - (byte(s, 1) < 48 and 1 or 0) >= 16 then
+      return tonumber(s .. "e0") -- a double on every VM, as 5.1 and LuaJIT read it
+    end
   end
-  if int_digits + frac_digits == 0 then return nil end
-  local exponent = false
-  b = byte(s, p)
-  if b == 101 or b == 69 then -- e E
-    local q = p + 1
-    local c = byte(s, q)
-    if c == 43 or c == 45 then q = q + 1 end
-    _, e = find(s, "^%d*", q)
-    if e < q then return nil end
-    p = e + 1
-    exponent = true
-  end
-  if p <= #s then return nil end
-  if not point and not exponent and int_digits >= 16 then
-    return tonumber(s .. "e0") -- a double on every VM, as 5.1 and LuaJIT read it
-  end
-  return tonumber(s)
+  return v
 end
 
 return M

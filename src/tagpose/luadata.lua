@@ -332,6 +332,12 @@ local function parse(text, name)
   if kind ~= "name" or v ~= "return" then
     if kind == "eof" then fail("the file is empty: 'return { ... }' expected", at) end
     if kind == "name" and KEYWORDS[v] == nil then
+      local k2, v2 = peek()
+      if (k2 == "." or k2 == ":") then
+        take()
+        local k3, v3 = peek()
+        v = v .. k2 .. (k3 == "name" and v3 or "...")
+      end
       fail("an assignment or a call ('" .. v .. "') is not data: 'return { ... }' expected", at)
     end
     if kind == "name" and type(KEYWORDS[v]) == "string" then

@@ -1,16 +1,39 @@
---- Corner logs, pose logs and camera files: the data formats of DESIGN.md.
+--- Corner logs, pose logs and camera files: the data formats of DESIGN.md, read row by row.
 --
 -- * Corner log: CSV with a header naming at least `frame,tag,u1,v1,u2,v2,u3,v3,u4,v4`
 --   (further columns are kept by name and otherwise ignored), one row per detection.
 -- * Pose log: CSV `frame,tag,x,y,z,qw,qx,qy,qz,error,iterations`.
--- * Camera file: a Lua file returning `{fx =, fy =, cx =, cy =, distortion = ..., tag_size =}`.
+-- * Camera file: see `tagpose.calibration` (Lua camera files are read as data, ROS and OpenCV
+--   YAML as they are written).
 --
--- Blank lines and lines starting with `#` are skipped. A malformed line is never dropped
--- silently: readers return it in a list of problems with its line number and the reason.
+-- The CSV is read as RFC 4180 writes it and as spreadsheets save it: fields separated by
+-- commas, a field in double quotes may hold commas, line ends and `""` for a quote; spaces
+-- and tabs around a field are trimmed; lines end in LF, CRLF or CR alone; a UTF-8 byte-order
+-- mark before the header is skipped. Blank lines and lines whose first character (after
+-- spaces) is `#` are skipped. The header names every column once (a repeated or empty name is
+-- refused). Every other row is either read exactly or reported with its line number and the
+-- reason, the same way on every VM: a row with more or fewer fields than the header, a quote
+-- inside an unquoted field or text after a closing quote, a quoted field that never closes, a
+-- line longer than `MAX_RECORD` bytes.
+--
+-- Numbers are decimal numerals (`compat.decimal`: `12`, `-0.5`, `6.5e+02`), the same on every
+-- VM; `nan`, `inf`, `-inf` and `infinity` (any case, as C and Python print them) are read as
+-- the values they name, and a numeral out of range as ±infinity, so that they are reported, not
+-- guessed: a `frame` or `tag` that is not a finite number makes the row malformed; a corner
+-- that is not finite is left to the solver to refuse. Anything else (hexadecimal, `1,5`,
+-- text) is not a number.
+--
+-- Readers take a path or an open file and read it in chunks: memory holds one row at a time.
 -- This module does file I/O, so it is for tools and replay, not for the solve path.
 -- @module tagpose.tools.log
 
 local compat = require("tagpose.compat")
+local calibration = require("tagpose.calibration")
+
+local decimal = compat.decimal
+local byte, sub, find, gmatch, concat = string.byte, string.sub, string.find, string.gmatch,
+  table.concat
+local floor, huge = math.floor, math.huge
 
 local M = {}
 
@@ -18,113 +41,529 @@ local M = {}
 M.CORNER_COLUMNS = { "frame", "tag", "u1", "v1", "u2", "v2", "u3", "v3", "u4", "v4" }
 --- Header of a pose log.
 M.POSE_COLUMNS = { "frame", "tag", "x", "y", "z", "qw", "qx", "qy", "qz", "error", "iterations" }
+--- Longest line (or quoted field across lines) read, in bytes; a longer one is reported.
+M.MAX_RECORD = 1048576
 
-local function split(line)
-  local fields = {}
-  for v in (line .. ","):gmatch("([^,]*),") do
-    fields[#fields + 1] = v:match("^%s*(.-)%s*$")
-  end
-  return fields
+local CHUNK = 65536
+local QUOTE, COMMA, HASH, SPACE, TAB = 34, 44, 35, 32, 9
+
+--- The number a CSV field denotes, or nil: a decimal numeral, or `nan`, `inf`, `infinity`
+-- (any case, optionally signed).
+-- @tparam string s the field, trimmed
+-- @treturn number|nil
+function M.number(s)
+  local v = decimal(s)
+  if v ~= nil then return v end
+  if #s > 9 then return nil end
+  local sign, word = s:match("^([-+]?)(%a+)$")
+  if not word then return nil end
+  word = word:lower()
+  if word == "nan" then return 0 / 0 end
+  if word == "inf" or word == "infinity" then return sign == "-" and -huge or huge end
+  return nil
 end
 
-local function lines_of(source)
+local number_of = M.number
+
+local function is_finite(v)
+  return v == v and v < huge and v > -huge
+end
+
+-------------------------------------------------------------------------------------------------
+-- physical lines, read in chunks
+
+local Lines = {}
+Lines.__index = Lines
+
+local function open_lines(source)
+  local f, owned = source, false
   if type(source) == "string" then
-    local f, err = io.open(source, "r")
+    local err
+    f, err = io.open(source, "rb")
     if not f then return nil, err end
-    return f, nil, true
+    owned = true
   end
-  return source
+  return setmetatable({ f = f, owned = owned, buf = "", pos = 1, line = 0, eof = false,
+    started = false, pending_cr = false }, Lines)
 end
 
---- Read a CSV table with a header line.
+function Lines:load()
+  if self.eof then return false end
+  local chunk = self.f:read(CHUNK)
+  if chunk == nil or chunk == "" then
+    self.eof = true
+    self.buf, self.pos = "", 1
+    return false
+  end
+  self.buf, self.pos = chunk, 1
+  if not self.started then
+    self.started = true
+    if sub(chunk, 1, 3) == "\239\187\191" then self.pos = 4 end
+  end
+  if self.pending_cr then
+    self.pending_cr = false
+    if byte(chunk, self.pos) == 10 then self.pos = self.pos + 1 end
+  end
+  return true
+end
+
+-- the next line without its end: a string, false for a line longer than MAX_RECORD (read
+-- through), or nil at the end; self.line is its number
+function Lines:next()
+  local parts, size = nil, 0
+  while true do
+    if self.pos > #self.buf and not self:load() then
+      if parts == nil then return nil end
+      self.line = self.line + 1
+      if size > M.MAX_RECORD then return false end
+      return concat(parts)
+    end
+    local buf, pos = self.buf, self.pos
+    local i = find(buf, "[\r\n]", pos)
+    if not i then
+      -- the line goes on in the next chunk
+      size = size + #buf - pos + 1
+      if size <= M.MAX_RECORD then
+        parts = parts or {}
+        parts[#parts + 1] = sub(buf, pos)
+      end
+      self.pos = #buf + 1
+    else
+      local j = i
+      if byte(buf, i) == 13 then
+        if i == #buf then
+          self.pending_cr = true
+        elseif byte(buf, i + 1) == 10 then
+          j = i + 1
+        end
+      end
+      self.pos = j + 1
+      self.line = self.line + 1
+      size = size + i - pos
+      if size > M.MAX_RECORD then return false end
+      if parts == nil then return sub(buf, pos, i - 1) end
+      parts[#parts + 1] = sub(buf, pos, i - 1)
+      return concat(parts)
+    end
+  end
+end
+
+function Lines:close()
+  if self.owned and self.f then self.f:close() end
+  self.f = nil
+end
+
+-------------------------------------------------------------------------------------------------
+-- CSV records
+
+-- the last position before j + 1 that is not a space or tab, at least i - 1 (linear)
+local function rtrim_end(s, i, j)
+  while j >= i do
+    local b = byte(s, j)
+    if b ~= SPACE and b ~= TAB then break end
+    j = j - 1
+  end
+  return j
+end
+
+local Csv = {}
+Csv.__index = Csv
+
+-- the next record: fields (at most `limit` kept), its first line and the number of fields;
+-- false, line, reason for a malformed one; nil at the end
+function Csv:record(limit)
+  local lines = self.lines
+  local s
+  while true do
+    s = lines:next()
+    if s == nil then return nil end
+    if s == false then
+      return false, lines.line, "line longer than " .. M.MAX_RECORD .. " bytes"
+    end
+    local q = find(s, "[^ \t]")
+    if q and byte(s, q) ~= HASH then break end
+  end
+  local start = lines.line
+  local fields, count, p = {}, 0, 1
+  if not find(s, '"', 1, true) then
+    -- no quotes: split at the commas
+    for field in gmatch(s .. ",", "([^,]*),") do
+      count = count + 1
+      if count <= limit then
+        local b, e = byte(field, 1), byte(field, -1)
+        if b == SPACE or b == TAB or e == SPACE or e == TAB then
+          local q = find(field, "[^ \t]")
+          field = q and sub(field, q, rtrim_end(field, q, #field)) or ""
+        end
+        fields[count] = field
+      end
+    end
+    return fields, start, count
+  end
+  local bad = nil
+  while true do
+    local q, b = p, byte(s, p)
+    if b == SPACE or b == TAB then
+      q = find(s, "[^ \t]", p)
+      b = q and byte(s, q)
+    end
+    if b == QUOTE then
+      -- a quoted field, possibly across lines
+      local parts, size, pos = {}, 0, q + 1
+      local close
+      while true do
+        local i = find(s, '"', pos, true)
+        if i and byte(s, i + 1) == QUOTE then
+          if size <= M.MAX_RECORD then parts[#parts + 1] = sub(s, pos, i) end
+          size = size + i - pos + 1
+          pos = i + 2
+        elseif i then
+          if size <= M.MAX_RECORD then parts[#parts + 1] = sub(s, pos, i - 1) end
+          size = size + i - pos
+          close = i
+          break
+        else
+          if size <= M.MAX_RECORD then parts[#parts + 1] = sub(s, pos) .. "\n" end
+          size = size + #s - pos + 2
+          s = lines:next()
+          if s == nil then
+            return false, start, "quoted field " .. (count + 1) .. " not closed"
+          end
+          if s == false then
+            s = ""
+            size = M.MAX_RECORD + 1
+          end
+          pos = 1
+        end
+      end
+      count = count + 1
+      if size > M.MAX_RECORD then
+        bad = bad or ("quoted field " .. count .. " longer than " .. M.MAX_RECORD .. " bytes")
+      elseif count <= limit then
+        fields[count] = concat(parts)
+      end
+      local r = find(s, "[^ \t]", close + 1)
+      if r == nil then break end
+      if byte(s, r) ~= COMMA then
+        bad = bad or ("text after the closing quote of field " .. count)
+        break
+      end
+      p = r + 1
+    else
+      local e = find(s, '[,"]', p)
+      if e and byte(s, e) == QUOTE then
+        bad = bad or ("a quote inside field " .. (count + 1) .. " (quote the whole field, with"
+          .. " \"\" for a quote)")
+        break
+      end
+      e = e or #s + 1
+      count = count + 1
+      if count <= limit then
+        if q == nil or q >= e then
+          fields[count] = ""
+        else
+          local last = byte(s, e - 1)
+          fields[count] = sub(s, q, (last == SPACE or last == TAB) and rtrim_end(s, q, e - 1)
+            or e - 1)
+        end
+      end
+      if e > #s then break end
+      p = e + 1
+    end
+  end
+  if bad then return false, start, bad end
+  return fields, start, count
+end
+
+--- Open a CSV table with a header line, to read it row by row.
+-- @tparam string|file source a path or an open file (left open by `close`)
+-- @tparam[opt] {string,...} required column names that must be in the header
+-- @treturn table the reader: `header` (the column names), `column` (name → index),
+--   `header_line`, and the methods `read()` → `fields, line` (an array of strings, trimmed
+--   and unquoted, one per column), `false, line, reason` for a malformed row, `nil` at the
+--   end; and `close()`
+-- @return nil, string when the source cannot be opened, has no header, or the header names a
+--   column twice, leaves one unnamed, or lacks a required column
+function M.csv_reader(source, required)
+  local lines, err = open_lines(source)
+  if not lines then return nil, "log: " .. tostring(err) end
+  local self = setmetatable({ lines = lines }, Csv)
+  local header, line, count = self:record(huge)
+  if header == false then
+    lines:close()
+    return nil, "log: header: " .. count .. " (line " .. line .. ")"
+  end
+  if header == nil then
+    lines:close()
+    return nil, "log: no header line"
+  end
+  local column = {}
+  for i = 1, count do
+    local name = header[i]
+    if name == "" then
+      lines:close()
+      return nil, "log: header column " .. i .. " has no name (line " .. line .. ")"
+    end
+    if column[name] then
+      lines:close()
+      return nil, ("log: header names column '%s' twice (columns %d and %d, line %d)"):format(
+        name, column[name], i, line)
+    end
+    column[name] = i
+  end
+  for _, name in ipairs(required or {}) do
+    if not column[name] then
+      lines:close()
+      local hint = ""
+      if count == 1 then
+        local sep = header[1]:match("[;\t|]")
+        if sep then
+          hint = ": its fields are separated by '" .. (sep == "\t" and "\\t" or sep)
+            .. "', not commas"
+        end
+      end
+      return nil, "log: header has no column '" .. name .. "' (line " .. line .. ")" .. hint
+    end
+  end
+  self.header, self.column, self.header_line = header, column, line
+  self.width = count
+  return setmetatable(self, Csv)
+end
+
+function Csv:read()
+  local fields, line, count = self:record(self.width)
+  if fields == nil then return nil end
+  if fields == false then return false, line, count end
+  if count ~= self.width then
+    return false, line, ("%d fields, header has %d"):format(count, self.width)
+  end
+  return fields, line
+end
+
+function Csv:close()
+  self.lines:close()
+end
+
+-- the fields of a row by column name: numbers, strings, nil for empty fields
+local function by_name(csv, fields)
+  local out = {}
+  local header = csv.header
+  for i = 1, #header do
+    local v = fields[i]
+    if v ~= "" then
+      local n = number_of(v)
+      if n == nil then out[header[i]] = v else out[header[i]] = n end
+    end
+  end
+  return out
+end
+
+-- check a frame or tag field: the number, or nil and the reason
+local function key_field(fields, i, name, n)
+  local v = fields[i]
+  if v == "" then return nil, "column " .. name .. " is empty" end
+  if n == nil then n = number_of(v) end
+  if type(n) ~= "number" then n = nil end
+  if n == nil then return nil, "column " .. name .. " is not a number" end
+  if not is_finite(n) then return nil, "column " .. name .. " is not finite (" .. v .. ")" end
+  return n
+end
+
+--- Read a whole CSV table with a header line.
 -- Numeric fields become numbers, empty fields `nil`, others stay strings.
 -- @tparam string|file source a path or an open file
 -- @tparam[opt] {string,...} required column names that must be in the header
--- @treturn {table,...} rows, each a table of fields by column name plus `line` (its line number)
+-- @treturn {table,...} rows, each a table of fields by column name
 -- @treturn {string,...} header column names
 -- @treturn {{line=int, reason=string},...} problems: lines that could not be read
--- @return nil, string when the source cannot be opened or the header lacks a required column
+-- @treturn {int,...} the line number of each row
+-- @return nil, string when the source cannot be opened or the header is not usable
 function M.read_csv(source, required)
-  local f, err, owned = lines_of(source)
-  if not f then return nil, "log: " .. tostring(err) end
-  local header, rows, problems = nil, {}, {}
-  local n = 0
-  for line in f:lines() do
-    n = n + 1
-    line = line:gsub("\r$", "")
-    local blank = line:match("^%s*$") or line:match("^%s*#")
-    if not blank and not header then
-      header = split(line)
-      for _, name in ipairs(required or {}) do
-        local found = false
-        for _, h in ipairs(header) do
-          if h == name then found = true end
-        end
-        if not found then
-          if owned then f:close() end
-          return nil, "log: header has no column '" .. name .. "' (line " .. n .. ")"
-        end
-      end
-    elseif not blank then
-      local fields = split(line)
-      if #fields < #header then
-        problems[#problems + 1] = { line = n, reason = ("%d fields, header has %d"):format(#fields,
-          #header) }
-      else
-        local row = { line = n }
-        for i, name in ipairs(header) do
-          local v = fields[i]
-          if v ~= "" then row[name] = tonumber(v) or v end
-        end
-        rows[#rows + 1] = row
-      end
+  local csv, err = M.csv_reader(source, required)
+  if not csv then return nil, err end
+  local rows, problems, lines = {}, {}, {}
+  while true do
+    local fields, line, reason = csv:read()
+    if fields == nil then break end
+    if fields then
+      rows[#rows + 1] = by_name(csv, fields)
+      lines[#lines + 1] = line
+    else
+      problems[#problems + 1] = { line = line, reason = reason }
     end
   end
-  if owned then f:close() end
-  if not header then return nil, "log: no header line" end
-  return rows, header, problems
+  csv:close()
+  return rows, csv.header, problems, lines
 end
 
---- Read a corner log.
+local Corners = {}
+Corners.__index = Corners
+
+--- Open a corner log, to read it detection by detection.
+-- @tparam string|file source a path or an open file
+-- @treturn table the reader, with `read()` → a detection `{frame =, tag =, corners = {{u, v},
+--   ...}, line =, fields =}` (`fields`: the whole row by column name, numbers as numbers),
+--   `false, line, reason` for a malformed row, `nil` at the end; and `close()`
+-- @return nil, string when the file cannot be read or its header lacks a column
+-- @usage
+-- local reader = assert(log.corner_reader("corners.csv"))
+-- while true do
+--   local det, line, reason = reader:read()
+--   if det == nil then break end
+--   if det then solve(det) else print(line, reason) end
+-- end
+-- reader:close()
+function M.corner_reader(source)
+  local csv, err = M.csv_reader(source, M.CORNER_COLUMNS)
+  if not csv then return nil, err end
+  local index = {}
+  for k, name in ipairs(M.CORNER_COLUMNS) do index[k] = csv.column[name] end
+  return setmetatable({ csv = csv, index = index, header = csv.header }, Corners)
+end
+
+function Corners:read()
+  local fields, line, reason = self.csv:read()
+  if fields == nil then return nil end
+  if fields == false then return false, line, reason end
+  local index = self.index
+  local named = by_name(self.csv, fields)
+  local frame, why = key_field(fields, index[1], "frame", named.frame)
+  if frame == nil then return false, line, why end
+  local tag
+  tag, why = key_field(fields, index[2], "tag", named.tag)
+  if tag == nil then return false, line, why end
+  local c = {}
+  for k = 3, 10 do
+    local name = M.CORNER_COLUMNS[k]
+    local n = named[name]
+    if n == nil then return false, line, "column " .. name .. " is empty" end
+    if type(n) ~= "number" then return false, line, "column " .. name .. " is not a number" end
+    c[k - 2] = n
+  end
+  return { frame = frame, tag = tag, line = line, fields = named,
+    corners = { { c[1], c[2] }, { c[3], c[4] }, { c[5], c[6] }, { c[7], c[8] } } }
+end
+
+function Corners:close()
+  self.csv:close()
+end
+
+local function read_all(reader)
+  local out, problems = {}, {}
+  while true do
+    local item, line, reason = reader:read()
+    if item == nil then break end
+    if item then
+      out[#out + 1] = item
+    else
+      problems[#problems + 1] = { line = line, reason = reason }
+    end
+  end
+  reader:close()
+  return out, problems
+end
+
+--- Read a whole corner log.
 -- A row whose frame, tag or corner fields are missing or not numbers is reported in the
 -- problems list and left out of the rows.
 -- @tparam string|file source a path or an open file
 -- @treturn {table,...} detections `{frame =, tag =, corners = {{u, v}, ...}, line =, fields =}`
 --   in file order (`fields`: the whole row by column name)
--- @treturn {{line=int, reason=string},...} problems
+-- @treturn {{line=int, reason=string},...} problems, in file order
 -- @return nil, string when the file cannot be read or lacks a column
 function M.read_corners(source)
-  local rows, header, problems = M.read_csv(source, M.CORNER_COLUMNS)
-  if not rows then return nil, header end
-  local out = {}
-  for _, row in ipairs(rows) do
-    local bad
-    for _, name in ipairs(M.CORNER_COLUMNS) do
-      if type(row[name]) ~= "number" then
-        bad = "column " .. name .. " is " .. (row[name] == nil and "empty" or "not a number")
-        break
-      end
-    end
-    if bad then
-      problems[#problems + 1] = { line = row.line, reason = bad }
+  local reader, err = M.corner_reader(source)
+  if not reader then return nil, err end
+  return read_all(reader)
+end
+
+local POSE_FIELDS = { "x", "y", "z", "qw", "qx", "qy", "qz" }
+
+local Poses = {}
+Poses.__index = Poses
+
+--- Open a pose log, or a truth file of the data sets (`frame,tag,x,y,z,qw,qx,qy,qz`: the
+-- `error` and `iterations` columns are optional), to read it row by row.
+-- A row whose pose fields are all empty is a failed row: it is returned with `pose = nil`. A
+-- row with some pose fields empty or not finite numbers, or without a finite frame and tag,
+-- is malformed.
+-- @tparam string|file source a path or an open file
+-- @treturn table the reader, with `read()` → an entry `{frame =, tag =, line =, pose =}`
+--   (`pose` shaped as a `tagpose.solve` result: `{position = {x, y, z}, quaternion = {w, x, y,
+--   z}, error =, iterations =}`, the quaternion as written, or `nil`), `false, line, reason`
+--   for a malformed row, `nil` at the end; and `close()`
+-- @return nil, string when the file cannot be read or lacks a column
+function M.pose_reader(source)
+  local required = { "frame", "tag" }
+  for i = 1, #POSE_FIELDS do required[#required + 1] = POSE_FIELDS[i] end
+  local csv, err = M.csv_reader(source, required)
+  if not csv then return nil, err end
+  local index = {}
+  for k, name in ipairs(required) do index[k] = csv.column[name] end
+  return setmetatable({ csv = csv, index = index, required = required,
+    error_column = csv.column.error, iterations_column = csv.column.iterations }, Poses)
+end
+
+function Poses:read()
+  local fields, line, reason = self.csv:read()
+  if fields == nil then return nil end
+  if fields == false then return false, line, reason end
+  local index = self.index
+  local frame, why = key_field(fields, index[1], "frame")
+  if frame == nil then return false, line, why end
+  local tag
+  tag, why = key_field(fields, index[2], "tag")
+  if tag == nil then return false, line, why end
+  local v, empty, bad = {}, 0, nil
+  for k = 3, #self.required do
+    local s = fields[index[k]]
+    local name = self.required[k]
+    if s == "" then
+      empty = empty + 1
+      bad = bad or ("column " .. name .. " is empty")
     else
-      out[#out + 1] = {
-        frame = row.frame,
-        tag = row.tag,
-        line = row.line,
-        fields = row,
-        corners = { { row.u1, row.v1 }, { row.u2, row.v2 }, { row.u3, row.v3 },
-          { row.u4, row.v4 } },
-      }
+      local n = number_of(s)
+      if n == nil then
+        return false, line, "column " .. name .. " is not a number"
+      elseif not is_finite(n) then
+        return false, line, "column " .. name .. " is not finite (" .. s .. ")"
+      end
+      v[k - 2] = n
     end
   end
-  table.sort(problems, function(a, b) return a.line < b.line end)
-  return out, problems
+  if empty == #POSE_FIELDS then
+    return { frame = frame, tag = tag, line = line }
+  elseif empty > 0 then
+    return false, line, bad
+  end
+  local e = self.error_column and number_of(fields[self.error_column])
+  local it = self.iterations_column and number_of(fields[self.iterations_column])
+  return { frame = frame, tag = tag, line = line, pose = {
+    position = { x = v[1], y = v[2], z = v[3] },
+    quaternion = { w = v[4], x = v[5], y = v[6], z = v[7] },
+    error = e, iterations = it,
+  } }
+end
+
+function Poses:close()
+  self.csv:close()
+end
+
+--- Read a whole pose log, or a truth file (see `pose_reader`).
+-- @tparam string|file source a path or an open file
+-- @treturn {table,...} entries `{frame =, tag =, line =, pose =}` in file order
+-- @treturn {{line=int, reason=string},...} problems, in file order
+-- @return nil, string when the file cannot be read or lacks a column
+function M.read_poses(source)
+  local reader, err = M.pose_reader(source)
+  if not reader then return nil, err end
+  return read_all(reader)
 end
 
 local function num(v)
   if v == nil then return "" end
-  if v == math.floor(v) and math.abs(v) < 2 ^ 53 then return ("%d"):format(v) end
+  if v == 0 then return "0" end
+  if v == floor(v) and v > -2 ^ 53 and v < 2 ^ 53 then return ("%.0f"):format(v) end
   return ("%.17g"):format(v)
 end
 
@@ -137,8 +576,56 @@ end
 function M.pose_line(frame, tag, pose)
   if not pose then return num(frame) .. "," .. num(tag) .. ",,,,,,,,," end
   local p, q = pose.position, pose.quaternion
-  return table.concat({ num(frame), num(tag), num(p.x), num(p.y), num(p.z), num(q.w), num(q.x),
+  return concat({ num(frame), num(tag), num(p.x), num(p.y), num(p.z), num(q.w), num(q.x),
     num(q.y), num(q.z), num(pose.error), num(pose.iterations) }, ",")
+end
+
+local Writer = {}
+Writer.__index = Writer
+
+--- Open a pose log for writing row by row: the header now, a line per `write`.
+-- @tparam string|file target a path (created or truncated) or an open file (left open)
+-- @treturn table the writer, with `write(frame, tag, pose)` (a `nil` pose writes a failed
+--   row) and `close()` → the number of rows written, or `nil, string` when writing failed
+-- @return nil, string when the file cannot be created
+function M.pose_writer(target)
+  local f, owned = target, false
+  if type(target) == "string" then
+    local err
+    f, err = io.open(target, "w")
+    if not f then return nil, "log: " .. tostring(err) end
+    owned = true
+  end
+  local self = setmetatable({ f = f, owned = owned, n = 0, pending = {}, err = nil }, Writer)
+  self.pending[1] = concat(M.POSE_COLUMNS, ",")
+  return self
+end
+
+function Writer:flush()
+  local pending = self.pending
+  if #pending == 0 or self.err then return end
+  pending[#pending + 1] = ""
+  local ok, err = self.f:write(concat(pending, "\n"))
+  if not ok then self.err = tostring(err) end
+  self.pending = {}
+end
+
+function Writer:write(frame, tag, pose)
+  local pending = self.pending
+  pending[#pending + 1] = M.pose_line(frame, tag, pose)
+  self.n = self.n + 1
+  if #pending >= 512 then self:flush() end
+end
+
+function Writer:close()
+  self:flush()
+  local err = self.err
+  if self.owned then
+    local closed, cerr = self.f:close()
+    if not closed and not err then err = tostring(cerr) end
+  end
+  if err then return nil, "log: " .. err end
+  return self.n
 end
 
 --- Write a whole pose log: the header, then one line per entry, in the entries' order.
@@ -148,103 +635,23 @@ end
 -- @treturn int the number of rows written
 -- @return nil, string when the file cannot be written
 function M.write_poses(target, entries)
-  local f, owned = target, false
-  if type(target) == "string" then
-    local err
-    f, err = io.open(target, "w")
-    if not f then return nil, "log: " .. tostring(err) end
-    owned = true
-  end
-  local lines = { table.concat(M.POSE_COLUMNS, ",") }
+  local writer, err = M.pose_writer(target)
+  if not writer then return nil, err end
   for i = 1, #entries do
     local e = entries[i]
-    lines[i + 1] = M.pose_line(e.frame, e.tag, e.pose)
+    writer:write(e.frame, e.tag, e.pose)
   end
-  lines[#lines + 1] = ""
-  local ok, err = f:write(table.concat(lines, "\n"))
-  if owned then
-    local closed, cerr = f:close()
-    if ok and not closed then ok, err = nil, cerr end
-  end
-  if not ok then return nil, "log: " .. tostring(err) end
-  return #entries
+  return writer:close()
 end
 
-local POSE_FIELDS = { "x", "y", "z", "qw", "qx", "qy", "qz" }
-
---- Read a pose log, or a truth file of the data sets (`frame,tag,x,y,z,qw,qx,qy,qz`: the
--- `error` and `iterations` columns are optional).
--- A row whose pose fields are all empty is a failed row: it is returned with `pose = nil`. A
--- row with some pose fields empty or not numbers, or without a numeric frame and tag, is
--- reported in the problems list and left out.
--- @tparam string|file source a path or an open file
--- @treturn {table,...} entries `{frame =, tag =, line =, pose =}` in file order, each `pose`
---   (or `nil`) shaped as a `tagpose.solve` result: `{position = {x, y, z},
---   quaternion = {w, x, y, z}, error =, iterations =}` (the quaternion as written, not
---   normalised)
--- @treturn {{line=int, reason=string},...} problems
--- @return nil, string when the file cannot be read or lacks a column
-function M.read_poses(source)
-  local required = { "frame", "tag" }
-  for i = 1, #POSE_FIELDS do required[#required + 1] = POSE_FIELDS[i] end
-  local rows, header, problems = M.read_csv(source, required)
-  if not rows then return nil, header end
-  local out = {}
-  for _, row in ipairs(rows) do
-    local bad, empty = nil, 0
-    for _, name in ipairs(required) do
-      local v = row[name]
-      if v == nil then
-        empty = empty + 1
-        if name == "frame" or name == "tag" then bad = "column " .. name .. " is empty" end
-      elseif type(v) ~= "number" then
-        bad = bad or "column " .. name .. " is not a number"
-      end
-    end
-    if not bad and empty > 0 and empty < #POSE_FIELDS then
-      for _, name in ipairs(POSE_FIELDS) do
-        if row[name] == nil then
-          bad = "column " .. name .. " is empty"
-          break
-        end
-      end
-    end
-    if bad then
-      problems[#problems + 1] = { line = row.line, reason = bad }
-    else
-      local pose = nil
-      if empty == 0 then
-        local e, n = row.error, row.iterations
-        pose = {
-          position = { x = row.x, y = row.y, z = row.z },
-          quaternion = { w = row.qw, x = row.qx, y = row.qy, z = row.qz },
-          error = type(e) == "number" and e or nil,
-          iterations = type(n) == "number" and n or nil,
-        }
-      end
-      out[#out + 1] = { frame = row.frame, tag = row.tag, line = row.line, pose = pose }
-    end
-  end
-  table.sort(problems, function(a, b) return a.line < b.line end)
-  return out, problems
-end
-
---- Read a camera file (a Lua file returning a table), without giving it access to anything.
+--- Read a camera file: `tagpose.calibration.read` (a Lua camera file as data, ROS or OpenCV
+-- YAML).
 -- @tparam string path
--- @treturn table the camera
--- @return nil, string when the file cannot be loaded or does not return a table
+-- @treturn table the camera `{fx =, fy =, cx =, cy =, model =, distortion =}`
+-- @treturn table what else the file said (`tag_size`, `block_size`, `width`, `height`, ...)
+-- @return nil, string when the file cannot be read or is refused
 function M.read_camera(path)
-  local f, err = io.open(path, "r")
-  if not f then return nil, "log: " .. tostring(err) end
-  local text = f:read("*a")
-  f:close()
-  local chunk
-  chunk, err = compat.load_text(text, "=" .. path, {})
-  if not chunk then return nil, "log: " .. tostring(err) end
-  local ok, camera = pcall(chunk)
-  if not ok then return nil, "log: " .. tostring(camera) end
-  if type(camera) ~= "table" then return nil, "log: " .. path .. " does not return a table" end
-  return camera
+  return calibration.read(path)
 end
 
 return M
