@@ -136,7 +136,7 @@ function M.covariance(N, sigma)
     local row = {}
     for j = 1, 6 do
       local b = j <= 3 and j + 3 or j - 3
-      row[j] = s2 * inv[(a - 1) * 6 + b]
+      row[j] = 0.5 * s2 * (inv[(a - 1) * 6 + b] + inv[(b - 1) * 6 + a])
     end
     out[i] = row
   end
