@@ -196,6 +196,7 @@ describe("tagpose.tools.log", function()
       assert.is_nil(rows)
       assert.equal("log: header column 11 has no name (line 2)", err)
       rows, err = read("frame;tag;u1;v1;u2;v2;u3;v3;u4;v4\n")
+      assert.is_nil(rows)
       assert.equal("log: header has no column 'frame' (line 1): its fields are separated by ';',"
         .. " not commas", err)
     end)

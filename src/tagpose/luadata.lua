@@ -332,7 +332,7 @@ local function parse(text, name)
   if kind ~= "name" or v ~= "return" then
     if kind == "eof" then fail("the file is empty: 'return { ... }' expected", at) end
     if kind == "name" and KEYWORDS[v] == nil then
-      local k2, v2 = peek()
+      local k2 = peek()
       if (k2 == "." or k2 == ":") then
         take()
         local k3, v3 = peek()

@@ -273,7 +273,7 @@ local function parse(text, name)
     if b == 37 then fail("'%' cannot start a plain scalar", li) end
   end
 
-  ---------------------------------------------------------------------------------------------
+  -- ------------------------------------------------------------------------------------------
   -- flow collections: a cursor (line, column) that crosses lines
 
   local flow_node
@@ -458,7 +458,7 @@ local function parse(text, name)
     return value, e + 1
   end
 
-  ---------------------------------------------------------------------------------------------
+  -- ------------------------------------------------------------------------------------------
   -- block collections
 
   local node_at, value_at
