@@ -40,6 +40,7 @@ build = {
     ["tagpose.layout.io"] = "src/tagpose/layout/io.lua",
     ["tagpose.layout.model"] = "src/tagpose/layout/model.lua",
     ["tagpose.layout.report"] = "src/tagpose/layout/report.lua",
+    ["tagpose.layout.schur"] = "src/tagpose/layout/schur.lua",
     ["tagpose.layout.solve"] = "src/tagpose/layout/solve.lua",
     ["tagpose.linsolve"] = "src/tagpose/linsolve.lua",
     ["tagpose.luadata"] = "src/tagpose/luadata.lua",

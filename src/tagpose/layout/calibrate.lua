@@ -40,6 +40,7 @@ local args = require("tagpose.args")
 local model = require("tagpose.layout.model")
 local frame = require("tagpose.layout.solve")
 local bundle = require("tagpose.layout.bundle")
+local schur = require("tagpose.layout.schur")
 local align = require("tagpose.layout.align")
 local report = require("tagpose.layout.report")
 
@@ -248,9 +249,9 @@ local function adjust(P, S, T, c2, budget)
     used = used + 1
     local accepted, new, done = false, huge, false
     while not accepted do
-      if bundle.step(P, lambda, D) then
+      if schur.step(P, lambda, D) then
         -- a step that promises (to first order) less than the tolerance: converged
-        if bundle.promise(P, D) <= 0.5 * tolerance then
+        if schur.promise(P, D) <= 0.5 * tolerance then
           done = true
           break
         end
