@@ -5,7 +5,7 @@ source = {
   url = "git+https://github.com/tagpose/tagpose.git",
 }
 description = {
-  summary = "Workstation tools for tagpose: corner and pose logs, SVG plots, tagpose-replay",
+  summary = "Workstation tools for tagpose: logs, plots, tagpose-replay, tagpose-calibrate",
   detailed = [[
     The tools around the tagpose library that a robot does not need: reading and writing
     corner logs and pose logs, drawing poses over frames as SVG, and the tagpose-replay command
@@ -24,12 +24,14 @@ test_dependencies = {
 build = {
   type = "builtin",
   modules = {
+    ["tagpose.tools.calibrate"] = "src/tagpose/tools/calibrate.lua",
     ["tagpose.tools.log"] = "src/tagpose/tools/log.lua",
     ["tagpose.tools.plot"] = "src/tagpose/tools/plot.lua",
     ["tagpose.tools.replay"] = "src/tagpose/tools/replay.lua",
   },
   install = {
     bin = {
+      ["tagpose-calibrate"] = "bin/tagpose-calibrate",
       ["tagpose-replay"] = "bin/tagpose-replay",
     },
   },

@@ -1,5 +1,6 @@
 local elimination = require("support.elimination")
 local lsq = require("tagpose.lsq")
+local linsolve = require("tagpose.linsolve")
 
 -- residual max |a x - b| of the original system
 local function residual(n, a, x, b, nrhs)
@@ -23,7 +24,7 @@ local function copy(t)
   return c
 end
 
-describe("support.elimination and tagpose.lsq.spd6()", function()
+describe("support.elimination, tagpose.lsq.spd6() and tagpose.linsolve", function()
   describe("solve()", function()
     it("solves a system whose first pivot is zero (needs a row swap)", function()
       local a = { 0, 2, 1,
@@ -165,16 +166,16 @@ describe("support.elimination and tagpose.lsq.spd6()", function()
                   2, 5, 1,
                   0.4, 1, 3 }
       local b = { 1, 2, 3 }
-      local x = assert(elimination.cholesky(3, copy(a), copy(b)))
+      local x = assert(linsolve.cholesky(3, copy(a), copy(b)))
       assert.is_true(residual(3, a, x, b) < 1e-14)
     end)
 
     it("reports a matrix that is not positive definite", function()
-      local x, err = elimination.cholesky(2, { 1, 2, 2, 1 }, { 1, 1 })
+      local x, err = linsolve.cholesky(2, { 1, 2, 2, 1 }, { 1, 1 })
       assert.is_nil(x)
-      assert.equal("elimination: matrix is not positive definite", err)
-      assert.same({ nil, "elimination: matrix is not positive definite" },
-        { elimination.cholesky(2, { 1, 1, 1, 1 }, { 1, 1 }) })
+      assert.equal("linsolve: matrix is not positive definite", err)
+      assert.same({ nil, "linsolve: matrix is not positive definite" },
+        { linsolve.cholesky(2, { 1, 1, 1, 1 }, { 1, 1 }) })
     end)
   end)
 end)

@@ -1,5 +1,5 @@
 -- The rockspecs' module maps are kept in step with src/: the library rock carries every module
--- but the tools, the tools rock carries src/tagpose/tools/ and the replay command.
+-- but the tools, the tools rock carries src/tagpose/tools/ and the commands (bin/).
 local lfs = require("lfs")
 
 local compat = require("tagpose.compat")
@@ -32,17 +32,23 @@ end
 local library, tools = {}, {}
 source_modules("src", "", library, tools)
 
+-- every command in bin/, installed under its own name
+local commands = {}
+for name in lfs.dir("bin") do
+  if name ~= "." and name ~= ".." then commands[name] = "bin/" .. name end
+end
+
 describe("rockspec", function()
   for name in lfs.dir("rockspec") do
     local path = "rockspec/" .. name
     if name:match("^tagpose%-tools%-.*%.rockspec$") then
-      it(path .. " lists exactly the tools and installs the replay command", function()
+      it(path .. " lists exactly the tools and installs the commands of bin/", function()
         local spec = load_rockspec(path)
         assert.equal("3.0", spec.rockspec_format)
         assert.equal("tagpose-tools", spec.package)
         assert.same({ "lua >= 5.1", "tagpose" }, spec.dependencies)
         assert.same(tools, spec.build.modules)
-        assert.same({ ["tagpose-replay"] = "bin/tagpose-replay" }, spec.build.install.bin)
+        assert.same(commands, spec.build.install.bin)
       end)
     elseif name:match("%.rockspec$") then
       it(path .. " lists exactly the library's modules, no tools", function()

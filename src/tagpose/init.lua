@@ -194,4 +194,7 @@ end
 --- Blocks: cubes carrying a tag on each face (`tagpose.block`).
 M.block = require("tagpose.block")
 
+--- Layouts: rigid sets of tags of any shape (`tagpose.layout`).
+M.layout = require("tagpose.layout")
+
 return M

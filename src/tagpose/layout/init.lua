@@ -1,0 +1,216 @@
+--- Layouts: rigid sets of tags of any shape — a cube, a board, the tags around a robot — each
+-- with its own id, size and pose on the body.
+--
+--     layout = {tags = {[id] = {size = s, position = {x =, y =, z =},
+--                               quaternion = {w =, x =, y =, z =}}}}
+--
+-- places each tag's frame (DESIGN.md's: origin at the tag's centre, x right, y down, z into the
+-- tag) in the body frame: `X_body = R(quaternion)·X_tag + position`. Lengths are in the unit
+-- of the sizes, angles in radians, errors in pixels.
+--
+-- * `solve` gives the body's pose from one frame's detections (`tagpose.layout.solve`);
+-- * `calibrate` gives the layout a recorded log says, from a nominal one
+--   (`tagpose.layout.calibrate`);
+-- * `read` and `write` keep layouts in files: Lua data files, apriltag_ros `tags.yaml` and CSV
+--   tables (`tagpose.layout.io`);
+-- * `cube` builds the nominal layout of a cube block (`tagpose.cube`'s faces).
+-- @module tagpose.layout
+
+local args = require("tagpose.args")
+local camera_model = require("tagpose.camera")
+local cube = require("tagpose.cube")
+local model = require("tagpose.layout.model")
+local frame = require("tagpose.layout.solve")
+local calibration = require("tagpose.layout.calibrate")
+local io_layout = require("tagpose.layout.io")
+
+local is_positive, describe = args.is_positive, args.describe
+
+local M = {}
+
+-- Raise a misuse at the caller of the entry point (`depth`: the helpers between them).
+local function raise(n, fname, message, depth)
+  args.raise(n, fname, message, 3 + (depth or 0))
+end
+
+-- Check that an options table has only the given keys (name, check, what it expects); returns
+-- the options or raises at the caller of the entry point.
+local function read_options(options, n, fname, spec)
+  if options == nil then return {} end
+  if type(options) ~= "table" then
+    raise(n, fname, "options table expected, got " .. type(options), 1)
+  end
+  for key in pairs(options) do
+    if spec[key] == nil then raise(n, fname, "options: unknown key " .. describe(key), 1) end
+  end
+  for key, check in pairs(spec) do
+    local v = options[key]
+    if v ~= nil and not check[1](v) then
+      raise(n, fname, "options." .. key .. ": " .. check[2] .. " expected, got " .. describe(v), 1)
+    end
+  end
+  return options
+end
+
+local SOLVE_OPTIONS = {
+  sigma = { is_positive, "positive number" },
+  max_iterations = { args.is_count, "positive integer" },
+}
+
+--- The pose of a layout from one frame's detections: one joint least-squares fit over all the
+-- corners of its tags seen, through the lens.
+-- @tparam {table,...} detections array of `{id =, corners =}` (corners in detection order, as
+--   for `tagpose.solve`); detections of ids not in the layout, malformed ones and ones whose
+--   tag cannot be solved are skipped and listed
+-- @tparam table camera as for `tagpose.solve`
+-- @tparam table layout `{tags = {[id] = {size =, position =, quaternion =}}}`
+-- @tparam[opt] table options `sigma` (corner noise, px, for `covariance` and `confidence`;
+--   default 0.5), `max_iterations` (bound on the linearisations of one fit; default 20)
+-- @treturn table body: `position = {x, y, z}`, `rotation` (nested 3×3), `quaternion`
+--   (`w >= 0`), body → camera; `error` (RMS over the corners used, px); `iterations`;
+--   `covariance` (6×6, order x, y, z, rx, ry, rz, camera frame); `confidence`; `alternative`
+--   (the other branch where the view is ambiguous: one tag, or tags in one plane; nil
+--   otherwise); `tags` (indices into `detections` of the detections used), `ids` (their ids),
+--   `skipped` (`{index =, id =, reason =}` for every detection not used)
+-- @return nil, string when no detection gives a pose (the message says why)
+-- @raise `bad argument #n to 'solve' (...)` for a detections argument that is not a table, a
+--   bad camera, a bad layout entry of a tag detected, or bad options
+-- @usage
+-- local body = tagpose.layout.solve({{id = 0, corners = c0}, {id = 3, corners = c3}}, camera,
+--   layout)
+-- print(body.position.x, body.position.y, body.position.z, body.error)
+function M.solve(detections, camera, layout, options)
+  if type(detections) ~= "table" then
+    raise(1, "solve", "array of detections expected, got " .. type(detections))
+  end
+  local problem = camera_model.check(camera)
+  if problem then raise(2, "solve", problem) end
+  if type(layout) ~= "table" then
+    raise(3, "solve", "layout table expected, got " .. type(layout))
+  end
+  local entries = layout.tags
+  if type(entries) ~= "table" then
+    raise(3, "solve", "layout.tags: table {[id] = tag} expected, got " .. type(entries))
+  end
+  local o = read_options(options, 4, "solve", SOLVE_OPTIONS)
+  -- the entries of the tags detected (the layout may hold many more)
+  local tags = {}
+  for i = 1, #detections do
+    local d = detections[i]
+    local id = type(d) == "table" and d.id or nil
+    if id ~= nil and tags[id] == nil and entries[id] ~= nil then
+      local t, why = model.read_tag(entries[id], id)
+      if not t then raise(3, "solve", "layout." .. why) end
+      tags[id] = t
+    end
+  end
+  return frame.solve(detections, camera, tags, o)
+end
+
+local CALIBRATE_OPTIONS = {
+  sigma = { is_positive, "positive number" },
+  max_iterations = { args.is_count, "positive integer" },
+  reference = { model.is_id, "tag id of the layout" },
+  robust = { is_positive, "positive number" },
+  gauge = { function(v) return v == "planes" or v == "corners" end, "'planes' or 'corners'" },
+}
+
+--- Calibrate a layout from a recorded log: the tags' poses on the body that the images say.
+-- A bundle adjustment over every frame's body pose and every tag's pose on the body, the frame
+-- poses eliminated per frame (see `tagpose.layout.calibrate`).
+-- @tparam {table,...} frames array of frames, each an array of detections `{id =, corners =}`
+-- @tparam table camera as for `tagpose.solve`
+-- @tparam table layout the nominal layout (the start, and the body frame of the result)
+-- @tparam[opt] table options `max_iterations` (bound on the bundle adjustment's
+--   linearisations, default 100), `reference` (the tag held fixed while solving; default the
+--   tag seen most), `robust` (the robust loss's scale, in standard deviations of the corner
+--   noise; default 3), `sigma` (the corner noise, px, for the report's standard deviations;
+--   default: estimated from the residuals)
+-- @treturn table the calibrated layout (same shape; tags that could not be placed keep their
+--   nominal pose)
+-- @treturn table the report (see `tagpose.layout.calibrate`)
+-- @return nil, string when the log cannot calibrate the layout (the message says why)
+-- @raise `bad argument #n to 'calibrate' (...)` for frames that are not an array of arrays, a
+--   bad camera, a bad layout or bad options
+function M.calibrate(frames, camera, layout, options)
+  if type(frames) ~= "table" then
+    raise(1, "calibrate", "array of frames expected, got " .. type(frames))
+  end
+  for i = 1, #frames do
+    if type(frames[i]) ~= "table" then
+      raise(1, "calibrate", "frames[" .. i .. "]: array of detections expected, got "
+        .. type(frames[i]))
+    end
+  end
+  local problem = camera_model.check(camera)
+  if problem then raise(2, "calibrate", problem) end
+  local tags, why = model.read(layout)
+  if not tags then raise(3, "calibrate", why) end
+  local o = read_options(options, 4, "calibrate", CALIBRATE_OPTIONS)
+  if o.reference ~= nil and not tags[o.reference] then
+    raise(4, "calibrate", "options.reference: tag " .. tostring(o.reference)
+      .. " is not in the layout")
+  end
+  return calibration.calibrate(frames, camera, tags, o, layout.name)
+end
+
+--- Read a layout file: a Lua data file (`.lua`; read as data, never run), an apriltag_ros
+-- `tags.yaml` (`.yaml`, `.yml`; its tags converted to tagpose's tag frame) or a CSV table
+-- `id,size,x,y,z,qw,qx,qy,qz` (`.csv`).
+-- @tparam string path
+-- @tparam[opt] string bundle for a `tags.yaml` of several bundles, the name of the one to read
+-- @treturn table layout
+-- @return nil, string when the file cannot be read or is not a layout (with its line)
+-- @raise `bad argument #1 to 'read'` when path is not a string
+function M.read(path, bundle)
+  if type(path) ~= "string" then raise(1, "read", "string expected, got " .. type(path)) end
+  if bundle ~= nil and type(bundle) ~= "string" then
+    raise(2, "read", "string expected for the bundle name, got " .. type(bundle))
+  end
+  return io_layout.read(path, bundle)
+end
+
+--- Write a layout file, in the format its extension names (as `read`).
+-- @tparam string path
+-- @tparam table layout
+-- @treturn true
+-- @return nil, string when the file cannot be written
+-- @raise `bad argument #n to 'write'` for a path that is not a string or a bad layout
+function M.write(path, layout)
+  if type(path) ~= "string" then raise(1, "write", "string expected, got " .. type(path)) end
+  local tags, why = model.read(layout)
+  if not tags then raise(2, "write", why) end
+  return io_layout.write(path, tags, layout.name)
+end
+
+--- The nominal layout of a cube block: a centred tag on each face, as `tagpose.cube` places
+-- them (tag z into the block).
+-- @tparam number tag_size side of the tags' black squares
+-- @tparam number block_size side of the cube (> tag_size)
+-- @tparam[opt] table faces tag id → face (`"+x"`, `"-x"`, `"+y"`, `"-y"`, `"+z"`, `"-z"`);
+--   default ids 0 to 5 on `+x`, `-x`, `+y`, `-y`, `+z`, `-z`
+-- @treturn table layout
+-- @raise `bad argument #n to 'cube'` for bad sizes or faces
+function M.cube(tag_size, block_size, faces)
+  if not is_positive(tag_size) then
+    raise(1, "cube", "positive number expected for tag_size, got " .. describe(tag_size))
+  end
+  if not (is_positive(block_size) and block_size > tag_size) then
+    raise(2, "cube", "number above tag_size expected for block_size, got " .. describe(block_size))
+  end
+  faces = faces or { [0] = "+x", "-x", "+y", "-y", "+z", "-z" }
+  if type(faces) ~= "table" then raise(3, "cube", "table expected, got " .. type(faces)) end
+  local tags, half = {}, 0.5 * block_size
+  for id, name in pairs(faces) do
+    local f = cube.FACES[name]
+    if not (model.is_id(id) and f) then
+      raise(3, "cube", "faces[" .. tostring(id) .. "]: face '+x', '-x', '+y', '-y', '+z' or "
+        .. "'-z' expected")
+    end
+    local n = f.normal
+    tags[id] = model.entry(f.rotation, half * n[1], half * n[2], half * n[3], tag_size)
+  end
+  return { tags = tags }
+end
+
+return M

@@ -1,0 +1,306 @@
+--- The pose of a layout (a rigid body carrying tags) from one frame's detections.
+--
+-- 1. Every detection of a tag of the layout is solved alone (the refined single-tag solve): one
+--    or two poses (the planar ambiguity), each implying a body pose `R_b = R·Qᵀ`,
+--    `t_b = t - R_b·p` for the tag placed at `(Q, p)` on the body. These are the starts.
+-- 2. The starts are costed over all the corners of all the tags seen, and the joint fit
+--    (`tagpose.layout.fit`: least squares over every corner through the lens) runs from the
+--    best.
+-- 3. Where the view is ambiguous — one tag, or only tags in one plane — the other branch is fit
+--    too, from the tag's other pose (one tag) or from the minimum mirrored about the line of
+--    sight to the tags' centroid (the planar ambiguity of the whole plane, as IPPE has it for a
+--    square); when it reaches a distinct minimum, the better-fitting minimum is the pose and
+--    the other its `alternative`.
+--    Tags on planes at an angle leave no planar ambiguity: one pose.
+--
+-- The covariance is `σ²·H⁻¹` of the final normal equations, and the confidence of an ambiguous
+-- view compares the branches' squared errors, with `σ` the corner noise (`options.sigma`,
+-- default `SIGMA`).
+--
+-- Lengths are in the layout's unit, angles in radians, errors in pixels.
+-- @module tagpose.layout.solve
+
+local rotation = require("tagpose.rotation")
+local args = require("tagpose.args")
+local compat = require("tagpose.compat")
+local fit = require("tagpose.layout.fit")
+
+local sqrt, exp, cos, huge = math.sqrt, math.exp, math.cos, math.huge
+local is_finite = compat.is_finite
+local mul_t = rotation.multiply_transpose
+
+local M = {}
+
+--- Default standard deviation of the corner noise (px), for `covariance` and `confidence`.
+M.SIGMA = 0.5
+--- Tags whose normals are within this angle (radians) of one another...
+M.COPLANAR_ANGLE = math.rad(10)
+--- ... and whose centres lie within this distance (× the largest tag side) of one plane leave
+-- the view ambiguous: both branches are fit.
+M.COPLANAR_DISTANCE = 0.1
+--- Two minima closer than this angle (radians) are one.
+M.TWIN_ANGLE = 1e-6
+--- Default bound on the linearisations of one joint fit.
+M.MAX_ITERATIONS = 20
+
+-- scratch, reused by every call and never handed out
+local points, pixels = {}, {}
+local corners = {}
+local start_r, start_t = {}, {} -- the starts: flat rotations (9 each), translations (3 each)
+local start_of = {} -- the used detection each start came from
+local r_a, r_b = {}, {}
+local normal_a, normal_b = {}, {}
+
+-- integration: the single-tag solve is the public tagpose.solve, required when first used (a
+-- library module never requires the facade when it loads); the lead switches it to the
+-- internal pipeline.
+local function solve_tag(tag_corners, camera, size)
+  return require("tagpose").solve(tag_corners, camera, size)
+end
+
+-- integration: until tagpose.uncertainty lands, the probability of the branch of squared
+-- error sse_a against the one of sse_b, from their likelihood ratio under Gaussian corner
+-- noise of standard deviation sigma.
+local function confidence(sse_a, sse_b, sigma)
+  local d = (sse_b - sse_a) / (2 * sigma * sigma)
+  if d > 700 then return 1 end
+  if d < -700 then return 0 end
+  return 1 / (1 + exp(-d))
+end
+
+-- Are the used tags all in one plane (normals and centres)?
+local function coplanar(used, n)
+  if n < 2 then return true end
+  local t = used[1].tag
+  local nx, ny, nz = t.r[3], t.r[6], t.r[9]
+  local size = t.size
+  for i = 2, n do
+    local s = used[i].tag.size
+    if s > size then size = s end
+  end
+  local limit, gate = M.COPLANAR_DISTANCE * size, cos(M.COPLANAR_ANGLE)
+  for i = 2, n do
+    local o = used[i].tag
+    local c = nx * o.r[3] + ny * o.r[6] + nz * o.r[9]
+    if c < 0 then c = -c end
+    if c < gate then return false end
+    local d = nx * (o.x - t.x) + ny * (o.y - t.y) + nz * (o.z - t.z)
+    if d < 0 then d = -d end
+    if d > limit then return false end
+  end
+  return true
+end
+
+-- The start of the other minimum of tags in one plane: the pose (r, t) mirrored about the line
+-- of sight v to the tags' centroid c, R' = (I - 2 v vᵀ)·R·(I - 2 n nᵀ) (n the plane's normal in
+-- the body), which keeps c and the plane's points' lines of sight; into out, and t'.
+local function mirror(used, n, r, tx, ty, tz, out)
+  local cx, cy, cz = 0, 0, 0
+  for i = 1, n do
+    local t = used[i].tag
+    cx, cy, cz = cx + t.x / n, cy + t.y / n, cz + t.z / n
+  end
+  local t1 = used[1].tag.r
+  local n1, n2, n3 = t1[3], t1[6], t1[9]
+  -- c in the camera, and v
+  local px = r[1] * cx + r[2] * cy + r[3] * cz + tx
+  local py = r[4] * cx + r[5] * cy + r[6] * cz + ty
+  local pz = r[7] * cx + r[8] * cy + r[9] * cz + tz
+  local d = sqrt(px * px + py * py + pz * pz)
+  local v1, v2, v3 = px / d, py / d, pz / d
+  -- R·(I - 2 n nᵀ): each row minus 2 (row·n) nᵀ; then (I - 2 v vᵀ) on the left
+  local m = {}
+  for row = 0, 6, 3 do
+    local k = 2 * (r[row + 1] * n1 + r[row + 2] * n2 + r[row + 3] * n3)
+    m[row + 1], m[row + 2], m[row + 3] = r[row + 1] - k * n1, r[row + 2] - k * n2,
+      r[row + 3] - k * n3
+  end
+  for col = 1, 3 do
+    local a, b, c = m[col], m[3 + col], m[6 + col]
+    local k = 2 * (v1 * a + v2 * b + v3 * c)
+    out[col], out[3 + col], out[6 + col] = a - k * v1, b - k * v2, c - k * v3
+  end
+  return px - (out[1] * cx + out[2] * cy + out[3] * cz),
+    py - (out[4] * cx + out[5] * cy + out[6] * cz),
+    pz - (out[7] * cx + out[8] * cy + out[9] * cz)
+end
+
+-- Add the body pose implied by a tag pose as start number k.
+local function add_start(k, pose, tag)
+  local rt = rotation.from_nested(pose.rotation, r_b)
+  local o = 9 * (k - 1)
+  local rb = mul_t(rt, tag.r, r_a)
+  for i = 1, 9 do start_r[o + i] = rb[i] end
+  local p = pose.position
+  local x, y, z = tag.x, tag.y, tag.z
+  o = 3 * (k - 1)
+  start_t[o + 1] = p.x - (rb[1] * x + rb[2] * y + rb[3] * z)
+  start_t[o + 2] = p.y - (rb[4] * x + rb[5] * y + rb[6] * z)
+  start_t[o + 3] = p.z - (rb[7] * x + rb[8] * y + rb[9] * z)
+end
+
+-- The start k into r (flat) and its translation.
+local function get_start(k, r)
+  local o = 9 * (k - 1)
+  for i = 1, 9 do r[i] = start_r[o + i] end
+  o = 3 * (k - 1)
+  return start_t[o + 1], start_t[o + 2], start_t[o + 3]
+end
+
+-- The usable detections: those of tags of the layout with four finite corners, solved alone;
+-- the others go into skipped with their reason. Fills points, pixels and the starts.
+local function gather(detections, camera, tags, skipped)
+  local used, n, starts = {}, 0, 0
+  local first_of = {}
+  for i = 1, #detections do
+    local d = detections[i]
+    local reason, tag, pose
+    if type(d) ~= "table" then
+      reason = "layout: detection is not a table {id =, corners =}"
+    else
+      tag = tags[d.id]
+      local ok, why = args.read_corners(d.corners, corners)
+      if not tag then
+        reason = "layout: tag id " .. tostring(d.id) .. " is not in the layout"
+      elseif not ok then
+        reason = "layout: " .. why
+      elseif ok ~= true then
+        reason = "layout: corner " .. ok .. " is not finite"
+      elseif first_of[d.id] then
+        reason = "layout: tag id " .. tostring(d.id) .. " is detected twice (detection "
+          .. first_of[d.id] .. " is used)"
+      else
+        pose, reason = solve_tag(d.corners, camera, tag.size)
+      end
+    end
+    if pose then
+      n = n + 1
+      first_of[d.id] = i
+      used[n] = { index = i, id = d.id, tag = tag, pose = pose }
+      local o = 8 * (n - 1)
+      for k = 1, 8 do pixels[o + k] = corners[k] end
+      local p, q = tag.points, 12 * (n - 1)
+      for k = 1, 12 do points[q + k] = p[k] end
+      starts = starts + 1
+      add_start(starts, pose, tag)
+      start_of[starts] = n
+      if pose.alternative then
+        starts = starts + 1
+        add_start(starts, pose.alternative, tag)
+        start_of[starts] = n
+      end
+    else
+      skipped[#skipped + 1] = { index = i, id = type(d) == "table" and d.id or nil,
+        reason = reason }
+    end
+  end
+  return used, n, starts
+end
+
+-- The public pose table of a minimum.
+local function result(r, x, y, z, sse, k, npts, N, sigma)
+  local w, qx, qy, qz = rotation.to_quaternion(r)
+  local out = {
+    position = { x = x, y = y, z = z },
+    rotation = rotation.to_nested(r),
+    quaternion = { w = w, x = qx, y = qy, z = qz },
+    error = sqrt(sse / npts),
+    iterations = k,
+  }
+  out.covariance = fit.covariance(N, sigma)
+  return out
+end
+
+local function finite(r, x, y, z, sse)
+  local s = x + y + z + sse
+  for i = 1, 9 do s = s + r[i] end
+  return is_finite(s)
+end
+
+--- Solve a layout's pose from one frame's detections.
+-- @tparam table detections array of `{id =, corners =}`
+-- @tparam table camera a checked camera
+-- @tparam table tags read tags by id (`tagpose.layout.model.read_tag`)
+-- @tparam table o the options: `sigma`, `max_iterations`
+-- @treturn table the body (see `tagpose.layout.solve`)
+-- @return nil, string when no detection gives a body pose
+function M.solve(detections, camera, tags, o)
+  local skipped = {}
+  local used, n, starts = gather(detections, camera, tags, skipped)
+  if n == 0 then
+    local why = skipped[1] and skipped[1].reason
+    return nil, "layout: no detection gives a pose of a tag of the layout"
+      .. (why and " (detection " .. skipped[1].index .. ": " .. why .. ")" or "")
+  end
+  local npts = 4 * n
+  -- the best start over all the corners
+  local best, best_cost = 1, huge
+  for k = 1, starts do
+    local tx, ty, tz = get_start(k, r_a)
+    local c = fit.cost(camera, points, pixels, 1, npts, r_a, tx, ty, tz)
+    if c < best_cost then best, best_cost = k, c end
+  end
+  local max_it = o.max_iterations or M.MAX_ITERATIONS
+  local ax, ay, az = get_start(best, r_a)
+  local cost_a, k_a, sse_a, cost_b, k_b, sse_b
+  ax, ay, az, cost_a, k_a, sse_a = fit.fit(camera, points, pixels, npts, r_a, ax, ay, az, max_it,
+    nil, normal_a)
+  -- the other branch, where the view is ambiguous: one tag's other pose, or the minimum
+  -- mirrored about the line of sight to the tags' plane
+  local other, bx, by, bz = nil, nil, nil, nil
+  if n == 1 then
+    if best > 1 and start_of[best - 1] == start_of[best] then
+      other = best - 1
+    elseif best < starts and start_of[best + 1] == start_of[best] then
+      other = best + 1
+    end
+    if other then bx, by, bz = get_start(other, r_b) end
+  elseif coplanar(used, n) then
+    other = true
+    bx, by, bz = mirror(used, n, r_a, ax, ay, az, r_b)
+  end
+  if other then
+    bx, by, bz, cost_b, k_b, sse_b = fit.fit(camera, points, pixels, npts, r_b, bx, by, bz,
+      max_it, nil, normal_b)
+    if not (cost_b < huge and finite(r_b, bx, by, bz, sse_b))
+      or rotation.angle(r_a, r_b) < M.TWIN_ANGLE then
+      other = nil
+    end
+  end
+  if not (cost_a < huge and finite(r_a, ax, ay, az, sse_a)) then
+    if not other then return nil, "layout: the joint fit put a corner behind the camera" end
+    -- only the other branch led to a pose
+    for i = 1, 9 do r_a[i] = r_b[i] end
+    for i = 1, 27 do normal_a[i] = normal_b[i] end
+    ax, ay, az, sse_a, k_a, other = bx, by, bz, sse_b, k_b, nil
+  end
+  local sigma = o.sigma or M.SIGMA
+  local body, alt
+  if other and sse_b < sse_a then
+    body = result(r_b, bx, by, bz, sse_b, k_b, npts, normal_b, sigma)
+    alt = result(r_a, ax, ay, az, sse_a, k_a, npts, normal_a, sigma)
+    body.confidence = confidence(sse_b, sse_a, sigma)
+  else
+    body = result(r_a, ax, ay, az, sse_a, k_a, npts, normal_a, sigma)
+    if other then
+      alt = result(r_b, bx, by, bz, sse_b, k_b, npts, normal_b, sigma)
+      body.confidence = confidence(sse_a, sse_b, sigma)
+    else
+      body.confidence = 1
+    end
+  end
+  if alt then
+    alt.confidence = 1 - body.confidence
+    body.alternative = alt
+  end
+  local list, ids = {}, {}
+  for i = 1, n do
+    list[i], ids[i] = used[i].index, used[i].id
+  end
+  body.tags, body.ids, body.skipped = list, ids, skipped
+  return body
+end
+
+compat.interpret(M.solve)
+
+return M

@@ -1,0 +1,237 @@
+--- tagpose-calibrate: calibrate a layout (a hand-glued cube, a board, the tags on a robot) from
+-- a corner log the robot recorded, print per tag what is off, and write the calibrated layout.
+--
+--   tagpose-calibrate LOG.csv (--layout NOMINAL | --cube TAG_SIZE,BLOCK_SIZE)
+--     [--camera CAMERA] [--out CALIBRATED.lua|.yaml|.csv] [--bundle NAME] [--unit NAME]
+--     [--reference ID] [--gauge planes|corners] [--robust K] [--max-iterations N]
+--
+-- LOG.csv      a corner log (frame,tag,u1,v1,...,u4,v4; rows of one frame are one image)
+-- --layout     the nominal layout: a Lua layout file (.lua, read as data), an apriltag_ros
+--              tags.yaml (.yaml, .yml; --bundle names the bundle when it has several) or a CSV
+--              table id,size,x,y,z,qw,qx,qy,qz (.csv)
+-- --cube       instead: a cube of side BLOCK_SIZE with tags 0-5 of side TAG_SIZE centred on
+--              its faces +x, -x, +y, -y, +z, -z (tagpose.layout.cube)
+-- --camera     a camera file (a Lua camera file, ROS camera_calibration or CameraInfo YAML, OpenCV
+--              FileStorage: tagpose.calibration); default camera.lua beside LOG.csv
+-- --out        write the calibrated layout, in the format its extension names
+-- --unit       the unit of the layout's lengths (default m): corrections are printed in mm
+--              for m, cm and mm, else in the unit
+-- --reference, --gauge, --robust, --max-iterations: tagpose.layout.calibrate's options
+--
+-- Exit status: 0 calibrated, 1 a file could not be read or written or the log cannot
+-- calibrate the layout, 2 a usage error.
+-- @module tagpose.tools.calibrate
+
+local tagpose = require("tagpose")
+local calibration = require("tagpose.calibration")
+local log = require("tagpose.tools.log")
+
+local deg, abs = math.deg, math.abs
+
+local USAGE = "usage: tagpose-calibrate LOG.csv (--layout NOMINAL | --cube TAG_SIZE,BLOCK_SIZE)\n"
+  .. "  [--camera CAMERA] [--out CALIBRATED.lua|.yaml|.csv] [--bundle NAME] [--unit NAME]\n"
+  .. "  [--reference ID] [--gauge planes|corners] [--robust K] [--max-iterations N]\n"
+
+local EXIT = {}
+
+local function usage(msg)
+  error(setmetatable({ status = 2, text = (msg and "calibrate: " .. msg .. "\n" or "") .. USAGE },
+    EXIT), 0)
+end
+
+local function fail(msg)
+  error(setmetatable({ status = 1, text = "calibrate: " .. msg .. "\n" }, EXIT), 0)
+end
+
+local M = {}
+
+local MM = { m = 1000, cm = 10, mm = 1 }
+
+-- The command line into a table.
+local function parse(argv)
+  local opt, options = {}, {}
+  local i = 1
+  local function value(name)
+    i = i + 1
+    local v = argv[i]
+    if v == nil or (v:sub(1, 2) == "--" and #v > 2) then usage(name .. " needs a value") end
+    return v
+  end
+  local function number(name, check, what)
+    local v = value(name)
+    local x = tonumber(v)
+    if not (x and check(x)) then usage(name .. ": " .. what .. " expected, got " .. v) end
+    return x
+  end
+  while argv[i] do
+    local a = argv[i]
+    if a == "--help" or a == "-h" then
+      io.stdout:write(USAGE)
+      error(setmetatable({ status = 0, text = "" }, EXIT), 0)
+    elseif a == "--layout" then
+      opt.layout = value(a)
+    elseif a == "--cube" then
+      local v = value(a)
+      local s, b = v:match("^([^,]+),([^,]+)$")
+      s, b = tonumber(s), tonumber(b)
+      if not (s and b and s > 0 and b > s and b < math.huge) then
+        usage("--cube: TAG_SIZE,BLOCK_SIZE (0 < TAG_SIZE < BLOCK_SIZE) expected, got " .. v)
+      end
+      opt.cube = { s, b }
+    elseif a == "--camera" then
+      opt.camera = value(a)
+    elseif a == "--out" then
+      opt.out = value(a)
+    elseif a == "--bundle" then
+      opt.bundle = value(a)
+    elseif a == "--unit" then
+      opt.unit = value(a)
+    elseif a == "--reference" then
+      options.reference = number(a, function(x) return x == math.floor(x) end, "tag id")
+    elseif a == "--gauge" then
+      options.gauge = value(a)
+      if options.gauge ~= "planes" and options.gauge ~= "corners" then
+        usage("--gauge: planes or corners expected, got " .. options.gauge)
+      end
+    elseif a == "--robust" then
+      options.robust = number(a, function(x) return x > 0 and x < math.huge end,
+        "positive number")
+    elseif a == "--max-iterations" then
+      options.max_iterations = number(a, function(x) return x >= 1 and x == math.floor(x)
+        and x < math.huge end, "positive integer")
+    elseif a:sub(1, 2) == "--" then
+      usage("unknown option " .. a)
+    elseif not opt.log then
+      opt.log = a
+    else
+      usage("one corner log expected, got " .. opt.log .. " and " .. a)
+    end
+    i = i + 1
+  end
+  if not opt.log then usage() end
+  if not opt.layout and not opt.cube then usage("give the nominal layout: --layout or --cube") end
+  if opt.layout and opt.cube then usage("--layout and --cube: give one") end
+  return opt, options
+end
+
+-- "+x", "-y+z", ...: the body axes a shift is mostly along
+local function towards(s)
+  local parts = { { abs(s.x), s.x < 0 and "-x" or "+x" }, { abs(s.y), s.y < 0 and "-y" or "+y" },
+    { abs(s.z), s.z < 0 and "-z" or "+z" } }
+  table.sort(parts, function(a, b) return a[1] > b[1] end)
+  local text = parts[1][2]
+  for k = 2, 3 do
+    if parts[k][1] >= 0.4 * parts[1][1] then text = text .. parts[k][2] end
+  end
+  return text
+end
+
+local function frames_of(rows)
+  local frames, index = {}, {}
+  for _, r in ipairs(rows) do
+    local k = index[r.frame]
+    if not k then
+      k = #frames + 1
+      index[r.frame] = k
+      frames[k] = {}
+    end
+    local f = frames[k]
+    f[#f + 1] = { id = r.tag, corners = r.corners }
+  end
+  return frames
+end
+
+-- The per-tag lines of a report.
+local function tag_lines(say, report, scale, unit)
+  local ids = {}
+  for id in pairs(report.tags) do ids[#ids + 1] = id end
+  table.sort(ids)
+  for _, id in ipairs(ids) do
+    local t = report.tags[id]
+    say("tag %d: %.2f %s towards %s, turned %.2f deg (in its plane %.2f %s, %+.2f deg; off it"
+      .. " %+.2f %s, tilted %.2f deg); %d detections%s, rms %.3f px", id, scale * t.distance,
+      unit, towards(t.shift), deg(t.angle), scale * t.in_plane, unit, deg(t.turn),
+      scale * t.normal, unit, deg(t.tilt), t.observations,
+      t.outliers > 0 and (" (" .. t.outliers .. " outliers)") or "", t.rms)
+  end
+  for _, u in ipairs(report.unplaced) do
+    say("tag %d: not placed, %s (kept at its nominal pose)", u.id, u.reason)
+  end
+end
+
+local function run(argv)
+  local opt, options = parse(argv)
+  local out = io.stdout
+  local function say(fmt, ...)
+    out:write(fmt:format(...), "\n")
+  end
+  -- the camera and the nominal layout
+  local camera_path = opt.camera or ((opt.log:match("^(.*)/[^/]*$") or ".") .. "/camera.lua")
+  if not opt.camera then
+    local probe = io.open(camera_path, "r")
+    if not probe then usage("no camera file " .. camera_path .. "; give --camera") end
+    probe:close()
+  end
+  local camera, cerr = calibration.read(camera_path)
+  if not camera then fail(cerr) end
+  local nominal, lerr
+  if opt.cube then
+    nominal = tagpose.layout.cube(opt.cube[1], opt.cube[2])
+  else
+    nominal, lerr = tagpose.layout.read(opt.layout, opt.bundle)
+    if not nominal then fail(lerr) end
+  end
+  -- the log
+  local rows, problems = log.read_corners(opt.log)
+  if not rows then
+    fail(problems:find(opt.log, 1, true) and problems or opt.log .. ": " .. problems)
+  end
+  local frames = frames_of(rows)
+  local ok, layout, report = pcall(tagpose.layout.calibrate, frames, camera, nominal, options)
+  if not ok then fail(tostring(layout)) end
+  if not layout then fail(report) end
+  local unit = opt.unit or "m"
+  local scale, shown = MM[unit] or 1, MM[unit] and "mm" or unit
+  say("calibrate %s: %d rows in %d frames%s", opt.log, #rows, #frames,
+    #problems > 0 and (", " .. #problems .. " malformed rows skipped") or "")
+  for k = 1, math.min(#problems, 10) do
+    say("  line %d: %s", problems[k].line, problems[k].reason)
+  end
+  local f = report.frames
+  say("frames: %d used (two or more tags of the layout), %d with one tag, %d with none, %d not"
+    .. " solved, %d apart from the reference's tags", f.used, f.single, f.unknown, f.failed,
+    f.elsewhere)
+  tag_lines(say, report, scale, shown)
+  local d = report.detections
+  say("residual rms %.3f px (nominal layout %.3f px), corner noise %.3f px; %d outliers of %d"
+    .. " detections", report.rms, report.rms_start, report.sigma, d.outliers, d.used)
+  say("gauge: tag %d held fixed, the result moved onto the nominal layout by %.3f %s (rms over"
+    .. " the corners); %d iterations in %d stages%s", report.reference, report.reference and
+    scale * report.alignment or 0, shown, report.iterations, report.stages,
+    report.converged and "" or " (stopped at --max-iterations)")
+  if opt.out then
+    local wok, werr = tagpose.layout.write(opt.out, layout)
+    if not wok then fail(werr) end
+    say("wrote %s", opt.out)
+  end
+  return 0
+end
+
+--- Run the command on its arguments (`arg` of the script).
+-- @tparam {string,...} argv the command-line arguments
+-- @treturn int the exit status: 0 calibrated, 1 a file could not be read or written or the log
+--   cannot calibrate the layout, 2 a usage error
+function M.main(argv)
+  local ok, status = pcall(run, argv)
+  if ok then return status end
+  if getmetatable(status) == EXIT then
+    local stream = status.status == 0 and io.stdout or io.stderr
+    stream:write(status.text)
+    return status.status
+  end
+  error(status, 0)
+end
+
+M.towards = towards
+
+return M
