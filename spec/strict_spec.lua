@@ -296,3 +296,35 @@ describe("frames of many tags", function()
     assert(ok, err)
   end)
 end)
+
+describe("tag sizes by id in block.solve", function()
+  local cam = { fx = 313.9, fy = 313.9, cx = 159.5, cy = 119.5 }
+
+  it("solve each tag with its own size, and skip an id without one", function()
+    local rng = geometry.rng(5)
+    local r, t = geometry.random_pose(rng, cam, 0.048, { width = 40, tilt = math.rad(40) })
+    local big = assert(geometry.project(cam, r, t, 0.048))
+    local small = assert(geometry.project(cam, r, t, 0.024))
+    local blocks = assert(tagpose.block.solve({ { id = 7, corners = big },
+      { id = 3, corners = small }, { id = 9, corners = small } }, cam,
+      { [7] = 0.048, [3] = 0.024 }, 0.1))
+    -- the same tag pose seen twice: one block each, the big tag's centre as far as the small's
+    assert.equal(1, #blocks)
+    assert.equal(2, #blocks.skipped)
+    local reasons = {}
+    for _, s in ipairs(blocks.skipped) do reasons[s.index] = s.reason end
+    -- the small tag's size right: it lands where the big one is, and overlaps it
+    assert.truthy(reasons[2]:find("in its place", 1, true), reasons[2])
+    assert.equal("block: tag_size has no size for tag id 9 and no default", reasons[3])
+    local p = blocks[1].position
+    assert.vector_near({ t[1] + 0.05 * r[3], t[2] + 0.05 * r[6], t[3] + 0.05 * r[9] },
+      { p.x, p.y, p.z }, 1e-6)
+  end)
+
+  it("refuse a size table with a bad size, naming it", function()
+    local message = raised(function()
+      tagpose.block.solve({}, cam, { [1] = 0.024, default = -1 }, 0.055)
+    end)
+    assert.truthy(message:find('tag_size["default"]', 1, true), message)
+  end)
+end)

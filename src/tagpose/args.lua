@@ -60,6 +60,23 @@ function M.check_size(v, name)
   end
 end
 
+--- Check a size argument that may also be a table of sizes by tag id, `{[id] = size, default =
+-- size}`: every value a size (`check_size`).
+-- @tparam any v
+-- @tparam string name the argument's name for the message
+-- @treturn string|nil what is wrong, or nil
+function M.check_sizes(v, name)
+  if type(v) ~= "table" then return M.check_size(v, name) end
+  local any = false
+  for key, size in pairs(v) do
+    any = true
+    local problem = M.check_size(size, name .. "[" .. (type(key) == "string"
+      and ("%q"):format(key) or tostring(key)) .. "]")
+    if problem then return problem end
+  end
+  if not any then return name .. ": a size or a table of sizes by tag id expected, got {}" end
+end
+
 --- Read four corners (`{u, v}` or `{x = u, y = v}` each) into the flat array `out`
 -- (`{u1, v1, ..., u4, v4}`).
 -- @tparam any corners

@@ -197,4 +197,7 @@ M.block = require("tagpose.block")
 --- Layouts: rigid sets of tags of any shape (`tagpose.layout`).
 M.layout = require("tagpose.layout")
 
+--- Calibration files: a camera from a ROS, OpenCV or Lua camera file (`tagpose.calibration`).
+M.calibration = require("tagpose.calibration")
+
 return M

@@ -214,4 +214,32 @@ function M.refined(w, half, tol, max_it)
   return M.order(w)
 end
 
+local sqrt = math.sqrt
+
+-- Is a candidate's pose finite, and its error?
+local function finite(c)
+  local r = c.r
+  local s = c.tx + c.ty + c.tz + sqrt(c.sse / 4)
+  for i = 1, 9 do s = s + r[i] end
+  return s == s and s < huge and s > -huge
+end
+
+--- The whole refined pipeline for one tag whose corners are in `w.px`, with the default
+-- solveQuad settings: its candidates, the better in `w.first` and the other minimum, when
+-- there is one, in `w.second` (`w.count` 2), each finite. For the callers that solve many tags
+-- (blocks, layouts) and keep both poses.
+-- @tparam table w a workspace with its corners in `w.px`
+-- @tparam table camera a checked camera
+-- @tparam number half half the tag side
+-- @treturn true
+-- @return nil, string when the corners give no finite pose (the message says why)
+function M.tag(w, camera, half)
+  local ok, why = M.prepare(w, camera)
+  if ok then ok, why = M.refined(w, half, M.REFINED_TOLERANCE, solvequad.MAX_ITERATIONS) end
+  if not ok then return nil, why end
+  if not finite(w.first) then return nil, "tagpose: no finite pose for these corners" end
+  if w.count == 2 and not finite(w.second) then w.count = 1 end
+  return true
+end
+
 return M

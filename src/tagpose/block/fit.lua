@@ -71,9 +71,10 @@ local face_points = M.face_points
 
 -- Fill `pixels` and `points` for the members of a hypothesis.
 local function load_members(fr, h)
-  local dets, half, half_block = fr.dets, fr.half, fr.half_block
+  local dets, half_block = fr.dets, fr.half_block
   for m = 1, #h.members do
-    local px, o = dets[h.members[m]].px, 8 * m - 8
+    local d = dets[h.members[m]]
+    local px, o, half = d.px, 8 * m - 8, d.half
     pixels[o + 1], pixels[o + 2], pixels[o + 3], pixels[o + 4] = px[1], px[2], px[3], px[4]
     pixels[o + 5], pixels[o + 6], pixels[o + 7], pixels[o + 8] = px[5], px[6], px[7], px[8]
     face_points(points, h.g[m], half, half_block, 4 * (m - 1) + 1)
@@ -163,7 +164,7 @@ end
 local function reassign(fr, h, m, worst_sse)
   local best_k, best_sse = nil, worst_sse
   for k = 1, 24 do
-    face_points(points, ROTATIONS[k], fr.half, fr.half_block, 4 * m - 3)
+    face_points(points, ROTATIONS[k], fr.dets[h.members[m]].half, fr.half_block, 4 * m - 3)
     local s = rigid.cost(fr.C, points, pixels, 4 * m - 3, 4 * m, body.r, body.tx, body.ty,
       body.tz)
     if s < best_sse then best_k, best_sse = k, s end

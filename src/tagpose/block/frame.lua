@@ -2,15 +2,16 @@
 -- as block candidates), the frame's corner noise, and what may change while the frame is
 -- solved (`up` and `floor` when found with "auto", the priors' weights).
 --
--- A detection record: `{index = its place in the caller's array, px = flat pixels, face_r =
--- its face's rotation when the faces are known, cands = {candidate, ...}, best_sse}`; a
+-- A detection record: `{index = its place in the caller's array, px = flat pixels,
+-- half = half its tag's side, face_r = its face's rotation when the faces are known,
+-- cands = {candidate, ...}, best_sse}`; a
 -- candidate: `{r = flat block → camera rotation (the tag's own, or R·R_fᵀ for a known face),
 -- x, y, z = the block centre it implies, sse = the tag's squared error (px²), depth = the
 -- standard deviation of its depth per pixel of corner noise}`.
 --
 -- The frame record: `settings` (`tagpose.block.options`, read only), the packed camera `C`,
--- `half`, `half_block`, `block_size`, `dets`, `skipped` (`{index =, reason =}` each),
--- `first_reason`, the noise (`sigma2` px², `noise_sse`, `noise_dof`, and for the F-test `n`
+-- `sizes` (the tag size, or sizes by id), `half_block`, `block_size`, `dets`, `skipped`
+-- (`{index =, reason =}` each), `first_reason`, the noise (`sigma2` px², `noise_sse`, `noise_dof`, and for the F-test `n`
 -- and `frame_sse`), `up` and `floor` (those in use), `prior_w` and `floor_w` (the priors'
 -- weights, px per radian and px per length unit), `default_up`.
 -- @module tagpose.block.frame
@@ -18,8 +19,6 @@
 local args = require("tagpose.args")
 local lsq = require("tagpose.lsq")
 local pipeline = require("tagpose.pipeline")
-local solvequad = require("tagpose.solvequad")
-local pose = require("tagpose.pose")
 local rotation = require("tagpose.rotation")
 
 local sqrt, abs, max = math.sqrt, math.abs, math.max
@@ -51,21 +50,13 @@ local function candidate(cand, face_r, half_block)
 end
 
 -- Solve one detection's corners (read into px) as a tag: its block candidates, or nil and why.
-local function solve_tag(fr, px, camera, face_r)
+local function solve_tag(fr, px, camera, face_r, half)
   local w = work
   for k = 1, 8 do w.px[k] = px[k] end
-  local ok, why = pipeline.prepare(w, camera)
-  if ok then
-    ok, why = pipeline.refined(w, fr.half, pipeline.REFINED_TOLERANCE, solvequad.MAX_ITERATIONS)
-  end
+  local ok, why = pipeline.tag(w, camera, half)
   if not ok then return nil, why end
-  local a, b = w.first, w.second
-  local ea = sqrt(a.sse / 4)
-  if not pose.is_finite(a, ea) then return nil, "tagpose: no finite pose for these corners" end
-  local cands = { candidate(a, face_r, fr.half_block) }
-  if w.count == 2 and pose.is_finite(b, sqrt(b.sse / 4)) then
-    cands[2] = candidate(b, face_r, fr.half_block)
-  end
+  local cands = { candidate(w.first, face_r, fr.half_block) }
+  if w.count == 2 then cands[2] = candidate(w.second, face_r, fr.half_block) end
   return cands
 end
 
@@ -91,11 +82,20 @@ local function add(fr, i, det, camera)
   if faces and not face_r then
     return skip(fr, i, "block: tag id " .. tostring(det.id) .. " is on no face of options.faces")
   end
+  local size = fr.sizes
+  if type(size) == "table" then
+    size = size[det.id]
+    if size == nil then size = fr.sizes.default end
+    if size == nil then
+      return skip(fr, i, "block: tag_size has no size for tag id " .. tostring(det.id)
+        .. " and no default")
+    end
+  end
   if finite ~= true then
     return skip(fr, i, "tagpose: corner " .. finite .. " is not finite", true)
   end
   local cands
-  cands, why = solve_tag(fr, px, camera, face_r)
+  cands, why = solve_tag(fr, px, camera, face_r, 0.5 * size)
   if not cands then return skip(fr, i, why, true) end
   -- the relative depth error per pixel of corner noise: 1 / apparent size (px), from the
   -- quadrilateral's area (half the cross product of its diagonals)
@@ -107,18 +107,19 @@ local function add(fr, i, det, camera)
     c.depth = sqrt(c.x * c.x + c.y * c.y + c.z * c.z) * relative
     if c.sse < best then best = c.sse end
   end
-  fr.dets[#fr.dets + 1] = { index = i, px = px, cands = cands, face_r = face_r, best_sse = best }
+  fr.dets[#fr.dets + 1] = { index = i, px = px, cands = cands, face_r = face_r, best_sse = best,
+    half = 0.5 * size }
 end
 
 --- A frame's record with its detections solved.
 -- @tparam table settings the options read (`tagpose.block.options.read`)
 -- @tparam {table,...} detections the caller's array of `{id =, corners =}`
 -- @tparam table camera a checked camera
--- @tparam number tag_size
+-- @tparam number|table tag_size a size, or sizes by tag id with an optional `default`
 -- @tparam number block_size
 -- @treturn table the frame record (see the module's header)
 function M.new(settings, detections, camera, tag_size, block_size)
-  local fr = { settings = settings, C = lsq.pack(camera), half = 0.5 * tag_size,
+  local fr = { settings = settings, C = lsq.pack(camera), sizes = tag_size,
     half_block = 0.5 * block_size, block_size = block_size, dets = {}, skipped = {},
     up = settings.up, floor = settings.floor, default_up = { 0, -1, 0 } }
   for i = 1, #detections do add(fr, i, detections[i], camera) end

@@ -53,6 +53,21 @@ M.OVERLAP = 0.5
 -- millimetres), and refused.
 M.MAX_RATIO = 100
 
+-- A tag of each size must fit on a face, and be in the block size's unit; or what is wrong.
+local function fits_block(tag_size, block_size)
+  local sizes = type(tag_size) == "table" and tag_size or { tag_size }
+  for key, size in pairs(sizes) do
+    local name = type(tag_size) == "table" and "tag_size[" .. tostring(key) .. "]" or "tag_size"
+    if not (block_size > size) then
+      return ("block_size must exceed %s, got %g <= %g"):format(name, block_size, size)
+    end
+    if block_size > M.MAX_RATIO * size then
+      return ("block_size %g is %.0f times %s %g: both must be in one unit (a tag covers a "
+        .. "fair part of its face)"):format(block_size, block_size / size, name, size)
+    end
+  end
+end
+
 local function arg_error(n, message)
   args.raise(n, "solve", message, 3)
 end
@@ -354,7 +369,9 @@ end
 --   `tagpose.solve` takes them (four points `{u, v}` or `{x =, y =}` in detection order, pixels)
 -- @tparam table camera `{fx =, fy =, cx =, cy =}` in pixels, optionally `distortion` and
 --   `model` (see `tagpose.camera`)
--- @tparam number tag_size side of the tags' black squares (> 0); lengths come out in its unit
+-- @tparam number|table tag_size side of the tags' black squares (> 0); lengths come out in its
+--   unit. Or the sides by tag id, `{[id] = size, default = size}` (`default` optional: a tag
+--   with no size is skipped, with its reason)
 -- @tparam number block_size side of the cube (> `tag_size`)
 -- @tparam[opt] table options
 --
@@ -413,17 +430,12 @@ function M.solve(detections, camera, tag_size, block_size, options)
   end
   local problem = camera_model.check(camera)
   if problem then arg_error(2, problem) end
-  problem = args.check_size(tag_size, "tag_size")
+  problem = args.check_sizes(tag_size, "tag_size")
   if problem then arg_error(3, problem) end
   problem = args.check_size(block_size, "block_size")
   if problem then arg_error(4, problem) end
-  if not (block_size > tag_size) then
-    arg_error(4, "block_size must exceed tag_size, got " .. block_size .. " <= " .. tag_size)
-  end
-  if block_size > M.MAX_RATIO * tag_size then
-    arg_error(4, ("block_size %g is %.0f times tag_size %g: both must be in one unit (a tag "
-      .. "covers a fair part of its face)"):format(block_size, block_size / tag_size, tag_size))
-  end
+  problem = fits_block(tag_size, block_size)
+  if problem then arg_error(4, problem) end
   local settings
   settings, problem = read_options(options)
   if not settings then arg_error(5, problem) end

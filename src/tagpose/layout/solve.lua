@@ -24,6 +24,7 @@ local rotation = require("tagpose.rotation")
 local args = require("tagpose.args")
 local compat = require("tagpose.compat")
 local fit = require("tagpose.layout.fit")
+local pipeline = require("tagpose.pipeline")
 
 local sqrt, exp, cos, huge = math.sqrt, math.exp, math.cos, math.huge
 local is_finite = compat.is_finite
@@ -51,11 +52,24 @@ local start_of = {} -- the used detection each start came from
 local r_a, r_b = {}, {}
 local normal_a, normal_b = {}, {}
 
--- integration: the single-tag solve is the public tagpose.solve, required when first used (a
--- library module never requires the facade when it loads); the lead switches it to the
--- internal pipeline.
-local function solve_tag(tag_corners, camera, size)
-  return require("tagpose").solve(tag_corners, camera, size)
+local work = pipeline.new() -- the single-tag pipeline's workspace
+
+-- One detection's corners (read into `corners`) solved alone: its candidate poses (copies:
+-- `{r = flat, tx, ty, tz}`, the better first, the other minimum second when there is one), or
+-- nil and why.
+local function solve_tag(camera, size)
+  local w = work
+  for k = 1, 8 do w.px[k] = corners[k] end
+  local ok, why = pipeline.tag(w, camera, 0.5 * size)
+  if not ok then return nil, why end
+  local out = {}
+  for k = 1, w.count do
+    local c = k == 1 and w.first or w.second
+    local r = {}
+    for i = 1, 9 do r[i] = c.r[i] end
+    out[k] = { r = r, tx = c.tx, ty = c.ty, tz = c.tz }
+  end
+  return out
 end
 
 -- integration: until tagpose.uncertainty lands, the probability of the branch of squared
@@ -126,17 +140,15 @@ local function mirror(used, n, r, tx, ty, tz, out)
 end
 
 -- Add the body pose implied by a tag pose as start number k.
-local function add_start(k, pose, tag)
-  local rt = rotation.from_nested(pose.rotation, r_b)
+local function add_start(k, cand, tag)
   local o = 9 * (k - 1)
-  local rb = mul_t(rt, tag.r, r_a)
+  local rb = mul_t(cand.r, tag.r, r_a)
   for i = 1, 9 do start_r[o + i] = rb[i] end
-  local p = pose.position
   local x, y, z = tag.x, tag.y, tag.z
   o = 3 * (k - 1)
-  start_t[o + 1] = p.x - (rb[1] * x + rb[2] * y + rb[3] * z)
-  start_t[o + 2] = p.y - (rb[4] * x + rb[5] * y + rb[6] * z)
-  start_t[o + 3] = p.z - (rb[7] * x + rb[8] * y + rb[9] * z)
+  start_t[o + 1] = cand.tx - (rb[1] * x + rb[2] * y + rb[3] * z)
+  start_t[o + 2] = cand.ty - (rb[4] * x + rb[5] * y + rb[6] * z)
+  start_t[o + 3] = cand.tz - (rb[7] * x + rb[8] * y + rb[9] * z)
 end
 
 -- The start k into r (flat) and its translation.
@@ -170,7 +182,7 @@ local function gather(detections, camera, tags, skipped)
         reason = "layout: tag id " .. tostring(d.id) .. " is detected twice (detection "
           .. first_of[d.id] .. " is used)"
       else
-        pose, reason = solve_tag(d.corners, camera, tag.size)
+        pose, reason = solve_tag(camera, tag.size)
       end
     end
     if pose then
@@ -181,12 +193,9 @@ local function gather(detections, camera, tags, skipped)
       for k = 1, 8 do pixels[o + k] = corners[k] end
       local p, q = tag.points, 12 * (n - 1)
       for k = 1, 12 do points[q + k] = p[k] end
-      starts = starts + 1
-      add_start(starts, pose, tag)
-      start_of[starts] = n
-      if pose.alternative then
+      for k = 1, #pose do
         starts = starts + 1
-        add_start(starts, pose.alternative, tag)
+        add_start(starts, pose[k], tag)
         start_of[starts] = n
       end
     else
