@@ -11,9 +11,10 @@
 --
 -- The frame record: `settings` (`tagpose.block.options`, read only), the packed camera `C`,
 -- `sizes` (the tag size, or sizes by id), `half_block`, `block_size`, `dets`, `skipped`
--- (`{index =, reason =}` each), `first_reason`, the noise (`sigma2` px², `noise_sse`, `noise_dof`, and for the F-test `n`
--- and `frame_sse`), `up` and `floor` (those in use), `prior_w` and `floor_w` (the priors'
--- weights, px per radian and px per length unit), `default_up`.
+-- (`{index =, reason =}` each), `first_reason`, the noise (`sigma2` px², `noise_sse`,
+-- `noise_dof`, and for the F-test `n` and `frame_sse`), `up` and `floor` (those in use),
+-- `prior_w` and `floor_w` (the priors' weights, px per radian and px per length unit),
+-- `default_up`.
 -- @module tagpose.block.frame
 
 local args = require("tagpose.args")
