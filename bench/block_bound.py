@@ -2,7 +2,7 @@
 
     /usr/bin/python3 bench/block_bound.py DATASET_DIR
 
-DATASET_DIR is a block data set (../shared/bench/dev/blocks, or one written by
+DATASET_DIR is a block data set (bench/dev/blocks, or one written by
 bench/make_blocks.lua): camera.lua, corners.csv, truth.csv, truth_tags.csv. For every block it
 fits the block pose to the corners of its own tags by Gauss-Newton, told each tag's true face
 (from truth_tags.csv) and started at the true pose -- the least-squares estimate with nothing

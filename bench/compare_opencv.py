@@ -4,8 +4,8 @@
     lua5.4 bin/tagpose-replay DATASET/corners.csv --track --out POSES.csv
     /usr/bin/python3 bench/compare_opencv.py DATASET POSES.csv
 
-DATASET holds corners.csv and camera.lua (the format of ../shared/bench/dev and
-../shared/realdata); POSES.csv is the pose log replay.lua wrote for it. For every row it runs
+DATASET holds corners.csv and camera.lua (the format of bench/dev and
+bench/realdata); POSES.csv is the pose log replay.lua wrote for it. For every row it runs
 cv2.solvePnP with SOLVEPNP_IPPE_SQUARE and SOLVEPNP_ITERATIVE (the camera's distortion
 coefficients passed, object points c1..c4 of the tag frame) and prints how far tagpose's pose is
 from each (rotation in degrees, translation in the unit of tag_size and in % of the distance), how

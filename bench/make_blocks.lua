@@ -1,4 +1,4 @@
--- Synthetic cube-block data sets, drawn like ../shared/bench/dev/blocks but from other seeds, so
+-- Synthetic cube-block data sets, drawn like bench/dev/blocks but from other seeds, so
 -- that figures measured on the one dev file can be checked for overfitting.
 --
 --   lua5.4 bench/make_blocks.lua OUT_DIR FRAMES SEED [SIGMA]

@@ -1,4 +1,4 @@
--- Synthetic glued-cube data sets drawn like ../shared/bench/dev/layout_cube, from other seeds,
+-- Synthetic glued-cube data sets drawn like bench/dev/layout_cube, from other seeds,
 -- cameras and sizes, so that layout calibration is tuned to the problem and not to one file.
 --
 --   lua5.4 bench/make_layout.lua OUT_DIR SEED [--frames N] [--calib K] [--test M]

@@ -4,7 +4,7 @@
 --   lua5.4 examples/accuracy.lua OUT_DIR --track
 --
 -- Writes OUT_DIR/corners.csv, truth.csv, camera.lua and meta.json in the format of
--- ../shared/bench/dev (frame = sequence * 1000 + k): SEQUENCES (default 70) trajectories of up
+-- bench/dev (frame = sequence * 1000 + k): SEQUENCES (default 70) trajectories of up
 -- to 250 frames each, cycling through seven kinds (approach, far_hover, far_wobble, orbit, spin,
 -- drive_by, enter_turning) with random parameters, a 24 mm tag seen by a 640x480 camera
 -- (fx = fy = 883.98), corners with Gaussian noise of 0.5 px; frames whose corners leave the

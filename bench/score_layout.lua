@@ -1,4 +1,4 @@
--- Score layout calibration on a data set drawn like ../shared/bench/dev/layout_cube (or by
+-- Score layout calibration on a data set drawn like bench/dev/layout_cube (or by
 -- bench/make_layout.lua): calibrate the nominal layout from calib/, then measure what issue 15
 -- asks for.
 --
