@@ -33,6 +33,7 @@ build = {
     ["tagpose.block.identity"] = "src/tagpose/block/identity.lua",
     ["tagpose.block.options"] = "src/tagpose/block/options.lua",
     ["tagpose.block.scene"] = "src/tagpose/block/scene.lua",
+    ["tagpose.block.uncertainty"] = "src/tagpose/block/uncertainty.lua",
     ["tagpose.calibration"] = "src/tagpose/calibration.lua",
     ["tagpose.camera"] = "src/tagpose/camera.lua",
     ["tagpose.compat"] = "src/tagpose/compat.lua",
@@ -61,6 +62,9 @@ build = {
     ["tagpose.solvequad"] = "src/tagpose/solvequad.lua",
     ["tagpose.square"] = "src/tagpose/square.lua",
     ["tagpose.track"] = "src/tagpose/track.lua",
+    ["tagpose.uncertainty"] = "src/tagpose/uncertainty/init.lua",
+    ["tagpose.uncertainty.matrix"] = "src/tagpose/uncertainty/matrix.lua",
+    ["tagpose.uncertainty.model"] = "src/tagpose/uncertainty/model.lua",
     ["tagpose.yaml"] = "src/tagpose/yaml.lua",
   },
 }

@@ -3,6 +3,7 @@
 local tagpose = require("tagpose")
 local geometry = require("support.geometry")
 local assertions = require("support.assertions")
+local gauss = require("support.gauss")
 
 local sqrt, sin, cos, rad, abs = math.sqrt, math.sin, math.cos, math.rad, math.abs
 
@@ -766,5 +767,113 @@ describe("tagpose.block", function()
         assert.equal(case[2], raised(case[1]), "case " .. i)
       end)
     end
+  end)
+
+  describe("uncertainty", function()
+    -- the truth aligned with the returned frame (the cube's symmetry nearest it): the error
+    -- (t_true - t, r) in the covariance's order
+    local function block_error(b, r, t)
+      local best, best_e = nil, math.huge
+      for _, g in ipairs(SYMMETRIES) do
+        local rg = geometry.mul(r, g)
+        local e = assertions.rotation_angle(rg, b.rotation)
+        if e < best_e then best, best_e = rg, e end
+      end
+      return gauss.error_of(b, best, t)
+    end
+
+    local function renoise(tags, rng, sigma)
+      local out = {}
+      for i, tag in ipairs(tags) do
+        local corners = {}
+        for k, c in ipairs(tag.corners) do
+          corners[k] = { c[1] + sigma * rng.normal(), c[2] + sigma * rng.normal() }
+        end
+        out[i] = { id = tag.id, corners = corners }
+      end
+      return out
+    end
+
+    it("covers a two-face block's pose as it claims (Monte-Carlo, 6 dof)", function()
+      local rng = geometry.rng(61)
+      local r, t, tags = random_block(rng, 2)
+      local sigma, n, inside, sum = 0.3, 300, 0, 0
+      for _ = 1, n do
+        local b = tagpose.block.solve(renoise(tags, rng, sigma), camera, TAG, BLOCK,
+          { sigma = sigma })[1]
+        assert.equal(2, b.faces)
+        assert.equal(1, b.confidence)
+        assert.is_true(gauss.is_spd(b.covariance))
+        local m2 = gauss.mahalanobis(b.covariance, block_error(b, r, t))
+        sum = sum + m2
+        if m2 < 12.59 then inside = inside + 1 end
+      end
+      local mean, share = sum / n, inside / n
+      assert.is_true(abs(mean - 6) < 4 * sqrt(12 / n), ("mean Mahalanobis² %.2f"):format(mean))
+      assert.is_true(abs(share - 0.95) < 4 * sqrt(0.0475 / n), ("coverage %.3f"):format(share))
+    end)
+
+    it("covers one-face blocks' centres on their true branch, with the tag's confidence",
+      function()
+        local rng = geometry.rng(62)
+        local sigma, n, inside = 0.3, 300, 0
+        for _ = 1, n do
+          local r, t, tags = random_block(rng, 1, sigma)
+          local b = solve(tags, { sigma = sigma })[1]
+          local tag = assert(tagpose.solve(tags[1].corners, camera, TAG, { sigma = sigma }))
+          -- the tag's branch probability, and its rotation covariance (the centre moves, the
+          -- rotation does not)
+          assert.near(tag.confidence, b.confidence, 1e-9)
+          for i = 4, 6 do
+            for j = 4, 6 do
+              assert.near(tag.covariance[i][j], b.covariance[i][j],
+                1e-9 * abs(tag.covariance[i][i]))
+            end
+          end
+          local a = b.alternative
+          if a then assert.near(1, b.confidence + a.confidence, 1e-12) end
+          local e = block_error(b, r, t)
+          if a then
+            local ea = block_error(a, r, t)
+            if ea[4] ^ 2 + ea[5] ^ 2 + ea[6] ^ 2 < e[4] ^ 2 + e[5] ^ 2 + e[6] ^ 2 then
+              b, e = a, ea
+            end
+          end
+          assert.is_true(gauss.is_spd(b.covariance))
+          if gauss.mahalanobis(b.covariance, { e[1], e[2], e[3] }) < 7.81 then
+            inside = inside + 1
+          end
+        end
+        local share = inside / n
+        assert.is_true(abs(share - 0.95) < 4 * sqrt(0.0475 / n), ("coverage %.3f"):format(share))
+      end)
+
+    it("with up, weighs both fits: the tilt is tighter, the confidences complementary",
+      function()
+        local rng = geometry.rng(63)
+        local tighter, n = 0, 40
+        for _ = 1, n do
+          local _, _, tags, up = random_block(rng, 1, 0.3)
+          local plain = solve(tags, { sigma = 0.3 })[1]
+          local with_up = solve(tags, { sigma = 0.3, up = up })[1]
+          assert.is_true(gauss.is_spd(with_up.covariance))
+          local c = with_up.covariance
+          local p = plain.covariance
+          if c[4][4] + c[5][5] + c[6][6] < p[4][4] + p[5][5] + p[6][6] then
+            tighter = tighter + 1
+          end
+          local a = with_up.alternative
+          assert.is_true(with_up.confidence >= 0 and with_up.confidence <= 1)
+          if a then assert.near(1, with_up.confidence + a.confidence, 1e-12) end
+        end
+        assert.equal(n, tighter)
+      end)
+
+    it("refuses a sigma that is not a positive number", function()
+      local _, _, tags = random_block(geometry.rng(64), 1)
+      assert.equal("bad argument #5 to 'solve' (options.sigma: positive number expected, got "
+        .. "number 0)", assertions.raised(function() solve(tags, { sigma = 0 }) end,
+        "block_spec.lua"))
+    end)
   end)
 end)

@@ -4,6 +4,7 @@ local tagpose = require("tagpose")
 local geometry = require("support.geometry")
 local layouts = require("support.layouts")
 local assertions = require("support.assertions")
+local gauss = require("support.gauss")
 
 local sqrt, rad, abs = math.sqrt, math.rad, math.abs
 
@@ -139,7 +140,9 @@ describe("tagpose.layout", function()
               found = found + 1
               assert.is_true(assertions.rotation_angle(body.rotation, alt.rotation) > 1e-4)
               assert.is_true(body.error <= alt.error + 1e-12)
-              assert.is_true(body.confidence >= 0.5 and body.confidence <= 1)
+              -- (the better fit may be the less likely branch: the confidence weighs the
+              -- curvature of each minimum and the tilt's prior too)
+              assert.is_true(body.confidence >= 0 and body.confidence <= 1)
               assert.near(1, body.confidence + alt.confidence, 1e-12)
               -- one of the two is the truth (exact corners)
               local e1 = assertions.rotation_angle(r, body.rotation)
@@ -194,6 +197,56 @@ describe("tagpose.layout", function()
         for j = 1, 6 do assert.near(cov[i][j], cov[j][i], 1e-12 * abs(cov[i][i] + cov[j][j])) end
       end
     end)
+
+    it("gives a one-tag view the tag's own uncertainty, the covariance at the body origin",
+      function()
+        local rng = geometry.rng(23)
+        local camera = CAMERAS.pinhole
+        local nominal = layouts.cube(rng, 0.0229, 0.0548, 0, 0, 0)
+        local tag5 = layouts.transpose(layouts.matrix(nominal.tags[5].quaternion))
+        local sigma, n, inside, seen = 0.4, 300, 0, 0
+        for _ = 1, n do
+          -- tag 5 faces the camera, tilted up to 40°, 0.15-0.6 m away
+          local r = geometry.mul(geometry.axis_angle(rng.normal(), rng.normal(), 0,
+            rng.uniform(0, rad(40))), tag5)
+          local t = { rng.uniform(-0.03, 0.03), rng.uniform(-0.03, 0.03), rng.uniform(0.15, 0.6) }
+          local dets = layouts.detections(nominal, camera, r, t, rng, sigma, 60)
+          if #dets == 1 then
+            seen = seen + 1
+            local body = assert(tagpose.layout.solve(dets, camera, nominal, { sigma = sigma }))
+            local tag = assert(tagpose.solve(dets[1].corners, camera, nominal.tags[5].size,
+              { sigma = sigma }))
+            -- the same corners, the same problem: the tag's poses, confidence and rotation
+            -- covariance
+            local alt = body.alternative
+            assert.is_true(assertions.rotation_angle(geometry.mul(assertions.flat(tag.rotation),
+              tag5), body.rotation) < 1e-9)
+            assert.equal(tag.alternative == nil, alt == nil)
+            assert.near(tag.confidence, body.confidence, 1e-12)
+            local tc = tag.covariance
+            for i = 4, 6 do
+              for j = 4, 6 do
+                assert.near(tc[i][j], body.covariance[i][j], 1e-9 * sqrt(tc[i][i] * tc[j][j]))
+              end
+            end
+            -- coverage of the body pose on its true branch
+            local best, e = body, gauss.error_of(body, r, t)
+            if alt then
+              assert.near(1, body.confidence + alt.confidence, 1e-12)
+              local ea = gauss.error_of(alt, r, t)
+              if ea[4] ^ 2 + ea[5] ^ 2 + ea[6] ^ 2 < e[4] ^ 2 + e[5] ^ 2 + e[6] ^ 2 then
+                best, e = alt, ea
+              end
+            end
+            assert.is_true(gauss.is_spd(best.covariance))
+            if gauss.mahalanobis(best.covariance, e) < 12.59 then inside = inside + 1 end
+          end
+        end
+        assert.is_true(seen > 200, "views with one tag " .. seen)
+        local share = inside / seen
+        assert.is_true(abs(share - 0.95) < 4 * sqrt(0.0475 / seen),
+          ("coverage %.3f"):format(share))
+      end)
 
     it("refuses misuse with the argument's position", function()
       local camera = CAMERAS.pinhole

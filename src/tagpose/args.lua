@@ -87,10 +87,12 @@ function M.read_corners(corners, out)
   if type(corners) ~= "table" then
     return false, "table of four corners expected, got " .. type(corners)
   end
-  -- counted by indexing, not `#`: a table's own `__len` may say anything
-  local n = 0
-  while n < 1000 and corners[n + 1] ~= nil do n = n + 1 end
-  if n ~= 4 then
+  -- counted by indexing, not `#`: a table's own `__len` may say anything (and no loop on the
+  -- way of four corners: LuaJIT cannot compile an inner loop into its caller's trace)
+  if corners[4] == nil or corners[5] ~= nil or corners[3] == nil or corners[2] == nil
+    or corners[1] == nil then
+    local n = 0
+    while n < 1000 and corners[n + 1] ~= nil do n = n + 1 end
     return false, "four corners expected, got " .. (n == 1000 and "1000 or more" or tostring(n))
   end
   local bad = true

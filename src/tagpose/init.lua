@@ -16,9 +16,11 @@ local rotation = require("tagpose.rotation")
 local track = require("tagpose.track")
 local pose = require("tagpose.pose")
 local pipeline = require("tagpose.pipeline")
+local uncertainty = require("tagpose.uncertainty")
+local refine = require("tagpose.refine")
 
 local is_positive, describe = args.is_positive, args.describe
-local sqrt = math.sqrt
+local sqrt, exp = math.sqrt, math.exp
 local to_quaternion = rotation.to_quaternion
 local _ = compat
 
@@ -37,7 +39,7 @@ local qa, qb = {}, {} -- the candidates' quaternions, as the tracker takes them
 local spare = setmetatable({}, { __mode = "k" }) -- into -> an alternative table to reuse
 
 -- the options solve takes
-local OPTIONS = { "method", "prior", "into", "tolerance", "max_iterations" }
+local OPTIONS = { "method", "prior", "into", "tolerance", "max_iterations", "sigma" }
 
 -- Read the options; or nil and a description of the misuse.
 local function read_options(options)
@@ -78,7 +80,11 @@ local function read_options(options)
   if into ~= nil and type(into) ~= "table" then
     return nil, "options.into: table expected, got " .. type(into)
   end
-  return method, tol, max_it, prior, into
+  local sigma = options.sigma
+  if sigma ~= nil and not is_positive(sigma) then
+    return nil, "options.sigma: positive number expected, got " .. describe(sigma)
+  end
+  return method, tol, max_it, prior, into, sigma
 end
 
 local function arg_error(n, message)
@@ -103,8 +109,26 @@ local function choose(w, prior, out)
   return a, has2 and b or nil
 end
 
+-- The branch confidence of a result and its alternative (their candidates a and b), and their
+-- covariances, made when first read (`tagpose.uncertainty`). σ²: options.sigma, else the
+-- tracker's running estimate, else the default pooled with the frame's residuals. With a
+-- tracking state the confidence is the tracker's posterior.
+local function uncertain(result, alt, a, b, sigma, track_state)
+  local sigma2 = sigma and sigma * sigma or (track_state and track_state[10])
+    or uncertainty.noise(a.sse)
+  local conf, _, ka, kb, d1, d2, d3, d4, d5, d6 = uncertainty.assess(a, alt and b, sigma2)
+  if alt and track_state then conf = 1 / (1 + exp(-track_state[9])) end
+  result.confidence = conf
+  uncertainty.resolve(result, a, sigma2, ka, d1, d2, d3, d4, d5, d6)
+  if alt then
+    alt.confidence = 1 - conf
+    uncertainty.resolve(alt, b, sigma2, kb, -d1, -d2, -d3, -d4, -d5, -d6)
+  end
+  return result
+end
+
 -- The public result of the refined method from an ordered workspace.
-local function refined_result(w, prior, into)
+local function refined_result(w, prior, into, sigma)
   local out_state = into and type(into.track) == "table" and into.track or state
   local a, b = choose(w, prior, out_state)
   local ea = sqrt(a.sse / 4)
@@ -130,11 +154,13 @@ local function refined_result(w, prior, into)
   elseif st ~= out_state then
     for i = 1, 10 do st[i] = out_state[i] end
   end
-  return result
+  return uncertain(result, alt, a, b, sigma, prior and out_state)
 end
 
--- The public result of the report's method (one candidate, its error measured here).
-local function seed_result(w, half, into)
+-- The public result of the report's method (one candidate, its error measured here). The
+-- report's pose is not a least-squares minimum and its method does not look at the other: its
+-- covariance is σ² H⁻¹ at it, its confidence 1.
+local function seed_result(w, camera, half, into, sigma)
   local a = w.first
   a.qw, a.qx, a.qy, a.qz = to_quaternion(a.r)
   local err = pose.reprojection_error(w.C, a.r, a.tx, a.ty, a.tz, half, w.px)
@@ -143,6 +169,10 @@ local function seed_result(w, half, into)
   end
   local result = pose.result(a, err, w.iterations, nil, into)
   if into then into.alternative, into.track = nil, nil end
+  a.sse = refine.normal(camera, w.px, half, a.r, a.tx, a.ty, a.tz, a.normal)
+  result.confidence = 1
+  uncertainty.resolve(result, a, sigma and sigma * sigma or uncertainty.noise(a.sse), 0, 0, 0,
+    0, 0, 0, 0)
   return result
 end
 
@@ -157,11 +187,18 @@ end
 --   - `method`: `"refined"` (default) or `"seed"` (the report's method exactly);
 --   - `prior`: the pose this tag had in the previous frame, for tracking (`tagpose.track`);
 --   - `into`: a pose table from an earlier call to fill instead of allocating a new one;
+--   - `sigma`: the standard deviation of the corner noise in pixels, for `covariance` and
+--     `confidence` (default: with `prior`, the tracker's running estimate; else
+--     `tagpose.uncertainty.DEFAULT_SIGMA` pooled with this frame's residuals);
 --   - `tolerance`: solveQuad's threshold (default 1e-10 for `"seed"`, `REFINED_TOLERANCE`
 --     for `"refined"`), `max_iterations`: its bound (default 100).
 -- @treturn table pose `{position = {x, y, z}, rotation = {{...}, {...}, {...}},
 --   quaternion = {w, x, y, z}, error = px, iterations = n, refine_iterations = n,
---   alternative = pose or nil, track = state}`
+--   confidence = p, covariance = {{...} x 6}, alternative = pose or nil, track = state}`:
+--   `covariance[i][j]` in the order (x, y, z, rx, ry, rz), position in tag-size units and a
+--   small rotation vector `r` in the camera frame, `R_true = exp([r]×) R`; `confidence` the
+--   probability that the pose is on the true branch of the planar ambiguity (1 where there is
+--   one minimum; with `prior`, the tracker's posterior), the alternative's its complement
 -- @return nil, string when the corners cannot be a tag's (the message says why)
 -- @raise `bad argument #n to 'solve' (...)` when an argument has the wrong type or range
 -- @usage
@@ -175,7 +212,7 @@ function M.solve(corners, camera, tag_size, options)
   if problem then arg_error(2, problem) end
   problem = args.check_size(tag_size, "tag_size")
   if problem then arg_error(3, problem) end
-  local method, tol, max_it, prior, into = read_options(options)
+  local method, tol, max_it, prior, into, sigma = read_options(options)
   if not method then arg_error(4, tol) end
   if bad ~= true then return nil, "tagpose: corner " .. bad .. " is not finite" end
   local ok, why = pipeline.prepare(w, camera)
@@ -184,11 +221,11 @@ function M.solve(corners, camera, tag_size, options)
   if method == "refined" then
     ok, why = pipeline.refined(w, half, tol, max_it)
     if not ok then return nil, why end
-    return refined_result(w, prior, into)
+    return refined_result(w, prior, into, sigma)
   end
   ok, why = pipeline.seed(w, half, tol, max_it)
   if not ok then return nil, why end
-  return seed_result(w, half, into)
+  return seed_result(w, camera, half, into, sigma)
 end
 
 --- Blocks: cubes carrying a tag on each face (`tagpose.block`).

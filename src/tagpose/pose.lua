@@ -105,6 +105,8 @@ end
 function M.is_finite(cand, err)
   local r = cand.r
   local s = cand.tx + cand.ty + cand.tz + err
+  -- (a loop, on purpose: on LuaJIT it ends the caller's trace here, which would otherwise run
+  -- on through the result with too many values live to compile)
   for i = 1, 9 do s = s + r[i] end
   return s == s and s < math.huge and s > -math.huge
 end

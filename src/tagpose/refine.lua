@@ -230,6 +230,18 @@ end
 
 local normal_a, normal_b = {}, {} -- normal equations, filled by linearise
 local pose_p, pose_q = {}, {} -- the refinement's pose and trial pose
+local packed = {} -- a camera packed for `normal`
+
+-- H (the normal equations' first 21 numbers) of A into out. (Written out: a loop here would
+-- start traces on LuaJIT whose exits carry refine's state.)
+local function keep(out, A)
+  out[1], out[2], out[3], out[4], out[5], out[6], out[7] = A[1], A[2], A[3], A[4], A[5], A[6],
+    A[7]
+  out[8], out[9], out[10], out[11], out[12], out[13], out[14] = A[8], A[9], A[10], A[11], A[12],
+    A[13], A[14]
+  out[15], out[16], out[17], out[18], out[19], out[20], out[21] = A[15], A[16], A[17], A[18],
+    A[19], A[20], A[21]
+end
 
 --- Refine a candidate pose in place over the four corners.
 -- @tparam table C a packed camera (`tagpose.lsq.pack`)
@@ -300,7 +312,31 @@ function M.refine(C, px, half, cand, max_iterations)
   r[1], r[4], r[7], r[2], r[5], r[8] = ax, ay, az, bx, by, bz
   r[3], r[6], r[9] = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
   cand.tx, cand.ty, cand.tz, cand.sse, cand.linearisations = P[7], P[8], P[9], sum, k
+  -- H of the last linearisation, for the uncertainty (one step before the result when the last
+  -- step left a negligible remainder: linearising again would cost a quarter of a solve and
+  -- changes no covariance measurably)
+  local out = cand.normal
+  if out then keep(out, A) end
   return cand
+end
+
+--- The normal equations of a pose over the four corners, without refining it (the report's
+-- method's pose, for its covariance).
+-- @tparam table camera a checked camera
+-- @tparam {number,...} px observed pixels, flat
+-- @tparam number half half the tag side
+-- @tparam {number,...} r flat rotation
+-- @tparam number tx
+-- @tparam number ty
+-- @tparam number tz
+-- @tparam {number,...} out 27 numbers to fill (`tagpose.lsq`'s layout)
+-- @treturn number the sum of squared pixel residuals (`math.huge` when a corner is behind the
+--   camera)
+function M.normal(camera, px, half, r, tx, ty, tz, out)
+  local Q = pose_q
+  Q[1], Q[2], Q[3], Q[4], Q[5], Q[6], Q[7], Q[8], Q[9] = r[1], r[4], r[7], r[2], r[5], r[8], tx,
+    ty, tz
+  return linearise_looped(out, px, lsq.pack(camera, packed), half, Q)
 end
 
 --- The start of the other local minimum: the pose with the tag's normal reflected about the

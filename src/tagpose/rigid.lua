@@ -236,4 +236,27 @@ function M.cost(C, points, px, first, last, r, tx, ty, tz)
   return residuals(C, Q, points, px, first, last)
 end
 
+
+local normal_pose = {}
+
+--- The normal equations of a pose (pixels and priors, no σ), for its covariance.
+-- @tparam table C a packed camera
+-- @tparam {number,...} points body points, flat
+-- @tparam {number,...} px observed pixels, flat
+-- @tparam int n number of points
+-- @tparam {number,...} r flat rotation
+-- @tparam number tx
+-- @tparam number ty
+-- @tparam number tz
+-- @tparam[opt] table prior a `prior()` record
+-- @tparam {number,...} out filled with `tagpose.lsq`'s layout (H in its first 21 numbers)
+-- @treturn number the cost at the pose, priors included (`math.huge` when a point is not in
+--   front of the camera)
+function M.normal(C, points, px, n, r, tx, ty, tz, prior, out)
+  local Q = normal_pose
+  for i = 1, 9 do Q[i] = r[i] end
+  Q[10], Q[11], Q[12] = tx, ty, tz
+  return linearise(out, C, prior or NO_PRIOR, Q, points, px, n)
+end
+
 return M

@@ -215,7 +215,7 @@ function M.hypothesis(fr, h)
       end
       h.r = copy9(body.r, h.r or {})
       h.x, h.y, h.z = body.tx, body.ty, body.tz
-      h.sse, h.cost = sum, cost
+      h.sse, h.cost, h.fitted = sum, cost, true
       return h
     end
     -- another face may explain the worst member (its gating candidate was the flipped one)
@@ -248,6 +248,20 @@ function M.refit_on_floor(fr, h)
     copy9(body.r, h.r)
     h.x, h.y, h.z, h.cost, h.sse = body.tx, body.ty, body.tz, cost, sse
   end
+end
+
+--- The normal equations of a fitted hypothesis at its pose (pixels and the priors it was
+-- fitted with), for its covariance.
+-- @tparam table fr the frame record
+-- @tparam table h a fitted hypothesis
+-- @tparam {number,...} out filled (`tagpose.rigid.normal`)
+-- @treturn number the cost at the pose (`math.huge` when a point is behind the camera)
+function M.normal(fr, h, out)
+  load_members(fr, h)
+  copy9(h.r, body.r)
+  body.tx, body.ty, body.tz = h.x, h.y, h.z
+  local pr = set_prior(fr, fr.floor ~= nil)
+  return rigid.normal(fr.C, points, pixels, 4 * #h.members, h.r, h.x, h.y, h.z, pr, out)
 end
 
 --- A block seen with one face: its candidates as hypotheses, the one chosen first — the

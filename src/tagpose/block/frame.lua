@@ -38,6 +38,11 @@ M.FLOOR_TOLERANCE = 0.02
 
 local work = pipeline.new() -- the single-tag pipeline's workspace
 
+local function unpack_normal(N)
+  return N[1], N[2], N[3], N[4], N[5], N[6], N[7], N[8], N[9], N[10], N[11], N[12], N[13],
+    N[14], N[15], N[16], N[17], N[18], N[19], N[20], N[21]
+end
+
 -- A block candidate from a tag's candidate pose (see the module's header).
 local function candidate(cand, face_r, half_block)
   local flat = { cand.r[1], cand.r[2], cand.r[3], cand.r[4], cand.r[5], cand.r[6], cand.r[7],
@@ -47,6 +52,10 @@ local function candidate(cand, face_r, half_block)
     x = cand.tx + half_block * flat[3], y = cand.ty + half_block * flat[6],
     z = cand.tz + half_block * flat[9],
     sse = cand.sse,
+    -- the tag's own candidate, for its uncertainty (`tagpose.uncertainty`'s record; no
+    -- quaternions: pipeline.tag does not order the candidates, so they are stale)
+    tag = { r = flat, tx = cand.tx, ty = cand.ty, tz = cand.tz, sse = cand.sse,
+      normal = { unpack_normal(cand.normal) } },
   }
 end
 

@@ -38,6 +38,7 @@ local group = require("tagpose.block.group")
 local fit = require("tagpose.block.fit")
 local scene = require("tagpose.block.scene")
 local identity = require("tagpose.block.identity")
+local spread = require("tagpose.block.uncertainty")
 
 local is_finite = compat.is_finite
 local sqrt, huge = math.sqrt, math.huge
@@ -306,7 +307,7 @@ local out_r, face_r = {}, {} -- scratch rotations
 
 -- One block's public table: its pose in the returned frame, tags and faces, the other pose of
 -- a one-face block.
-local function block_table(fr, f, prev)
+local function block_table(fr, f, prev, sigma2)
   local h, dets = f.h, fr.dets
   local r = identity.output_rotation(h.r, h.x, h.y, h.z, fr, prev, out_r)
   local b = pose_table(r, h.x, h.y, h.z, f.err)
@@ -327,6 +328,7 @@ local function block_table(fr, f, prev)
       b.alternative = pose_table(orr, o.x, o.y, o.z, oerr)
     end
   end
+  spread.attach(fr, f, b, sigma2)
   return b
 end
 
@@ -342,9 +344,10 @@ local function results(fr, blocks)
     table.sort(blocks, nearer)
   end
   local out = {}
+  local sigma2 = spread.noise(fr, blocks)
   for i, f in ipairs(blocks) do
     local prev = match[i] and previous[match[i]]
-    local b = block_table(fr, f, prev)
+    local b = block_table(fr, f, prev, sigma2)
     if prev and is_finite(prev.id) then
       b.id = prev.id
     else
@@ -403,12 +406,19 @@ end
 --   - `faces`: a table tag id → face (`"+x"`, `"-x"`, `"+y"`, `"-y"`, `"+z"`, `"-z"`, or the
 --     nested 3×3 tag → block rotation, one of the cube's) when the faces can be told apart: the
 --     block frame is then absolute and detections with other ids are skipped;
---   - `max_iterations`: bound on the linearisations of one joint fit (default 20).
+--   - `max_iterations`: bound on the linearisations of one joint fit (default 20);
+--   - `sigma`: the corner noise in pixels, for `covariance` and `confidence` (default: the
+--     frame's block residuals pooled with `tagpose.uncertainty.DEFAULT_SIGMA`).
 -- @treturn {table,...} blocks, nearest first (sorted by `id` when tracking), each
 --   `{id =, position = {x, y, z}, rotation = {{...}, {...}, {...}}, quaternion = {w, x, y, z},
 --   raw_rotation = {{...}, ...}, error = px, tags = {i, ...}, faces = k, tag_faces = {"+x",
---   ...}, orientation = "faces"|"up"|"track"|"error", alternative = {position, rotation,
---   quaternion, error} or nil}`; the array's field `skipped` lists the detections not used,
+--   ...}, orientation = "faces"|"up"|"track"|"error", covariance = {{...} x 6},
+--   confidence = p, alternative = {position, rotation, quaternion, error, covariance,
+--   confidence} or nil}`: `covariance[i][j]` in the order (x, y, z, rx, ry, rz) of the block
+--   centre and a small rotation vector, both in the camera frame, as for a tag
+--   (`tagpose.block.uncertainty`); `confidence` the probability that the block's orientation
+--   is the true one of the two a one-face block has (1 with two or more faces; below 0.5 when
+--   the better-fitting one is the less likely); the array's field `skipped` lists the detections not used,
 --   `{index = i, reason = string}`, `next_id` the id a new block would take, and `noise`
 --   the corner noise evidence `{sse =, dof =}` (px², degrees of freedom) carried to the next
 --   frame, `up` (`{x =, y =, z =}`) and `floor` the up and floor used (given or found with

@@ -122,7 +122,7 @@ end
 
 -- the options block.solve takes
 local OPTIONS = { "up", "up_tolerance", "floor", "floor_tolerance", "previous", "faces",
-  "max_iterations" }
+  "max_iterations", "sigma" }
 
 -- the scalar options: name, check, what the check expects
 local SCALAR_OPTIONS = {
@@ -130,6 +130,7 @@ local SCALAR_OPTIONS = {
   "floor", is_finite, "finite number",
   "floor_tolerance", is_positive, "positive number",
   "max_iterations", args.is_count, "positive integer",
+  "sigma", is_positive, "positive number",
 }
 
 -- options.previous and the noise it carries, into the settings s; or nil and the misuse.

@@ -11,8 +11,8 @@
 --     N[22..27]  the gradient Jᵀr
 --
 -- in pixel units, δω a small left rotation vector in the camera frame and δt the move of the
--- body origin in the camera frame. `covariance` turns them into the 6×6 covariance, ordered
--- (x, y, z, rx, ry, rz) as ROS `PoseWithCovariance`.
+-- body origin in the camera frame (`tagpose.uncertainty.from_normal` turns them into the 6×6
+-- covariance, ordered (x, y, z, rx, ry, rz) as ROS `PoseWithCovariance`).
 --
 -- Rotations are flat, row-major 3×3 (body → camera); body points are flat `{x1, y1, z1, ...}`;
 -- pixels are flat `{u1, v1, u2, v2, ...}`.
@@ -108,34 +108,6 @@ end
 -- @treturn number
 function M.cost(camera, points, px, first, last, r, tx, ty, tz)
   return rigid.cost(constants(camera), points, px, first, last, r, tx, ty, tz)
-end
-
-local work = {}
-
--- integration: until tagpose.uncertainty lands, the textbook covariance σ²·H⁻¹ of the
--- Gauss-Newton normal equations; the lead swaps this for the shared module.
---- The covariance of a pose from its normal equations: `σ²·H⁻¹`, reordered to
--- (x, y, z, rx, ry, rz).
--- @tparam {number,...} N the normal equations (as `normal` fills them)
--- @tparam number sigma the standard deviation of the pixel noise
--- @treturn table nested 6×6 `covariance[i][j]`
--- @return nil, string when H is singular (the points do not fix the pose)
-function M.covariance(N, sigma)
-  local inv = lsq.invert6(N, work)
-  if not inv then return nil, "layout: matrix is singular" end
-  -- (ω, t) → (t, ω)
-  local s2 = sigma * sigma
-  local out = {}
-  for i = 1, 6 do
-    local a = i <= 3 and i + 3 or i - 3
-    local row = {}
-    for j = 1, 6 do
-      local b = j <= 3 and j + 3 or j - 3
-      row[j] = 0.5 * s2 * (inv[(a - 1) * 6 + b] + inv[(b - 1) * 6 + a])
-    end
-    out[i] = row
-  end
-  return out
 end
 
 return M

@@ -65,7 +65,8 @@ local SOLVE_OPTIONS = {
 -- @tparam table camera as for `tagpose.solve`
 -- @tparam table layout `{tags = {[id] = {size =, position =, quaternion =}}}`
 -- @tparam[opt] table options `sigma` (corner noise, px, for `covariance` and `confidence`;
---   default 0.5), `max_iterations` (bound on the linearisations of one fit; default 20)
+--   default: the fit's residuals pooled with `tagpose.uncertainty.DEFAULT_SIGMA`),
+--   `max_iterations` (bound on the linearisations of one fit; default 20)
 -- @treturn table body: `position = {x, y, z}`, `rotation` (nested 3×3), `quaternion`
 --   (`w >= 0`), body → camera; `error` (RMS over the corners used, px); `iterations`;
 --   `covariance` (6×6, order x, y, z, rx, ry, rz, camera frame); `confidence`; `alternative`

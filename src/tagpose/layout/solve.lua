@@ -3,19 +3,26 @@
 -- 1. Every detection of a tag of the layout is solved alone (the refined single-tag solve): one
 --    or two poses (the planar ambiguity), each implying a body pose `R_b = R·Qᵀ`,
 --    `t_b = t - R_b·p` for the tag placed at `(Q, p)` on the body. These are the starts.
--- 2. The starts are costed over all the corners of all the tags seen, and the joint fit
---    (`tagpose.layout.fit`: least squares over every corner through the lens) runs from the
---    best.
--- 3. Where the view is ambiguous — one tag, or only tags in one plane — the other branch is fit
---    too, from the tag's other pose (one tag) or from the minimum mirrored about the line of
---    sight to the tags' centroid (the planar ambiguity of the whole plane, as IPPE has it for a
---    square); when it reaches a distinct minimum, the better-fitting minimum is the pose and
---    the other its `alternative`.
+-- 2. One tag seen: its candidates are the body's minima (the same least-squares problem), so
+--    that a layout seen by one tag has the pose and uncertainty `tagpose.solve` gives the tag.
+-- 3. Otherwise the starts are costed over all the corners of all the tags seen, and the joint
+--    fit (`tagpose.layout.fit`: least squares over every corner through the lens) runs from the
+--    best. Where the view is ambiguous — only tags in one plane — the other branch is fit too,
+--    from the minimum mirrored about the line of sight to the tags' centroid (the planar
+--    ambiguity of the whole plane, as IPPE has it for a square); when it reaches a distinct
+--    minimum, the better-fitting minimum is the pose and the other its `alternative`.
 --    Tags on planes at an angle leave no planar ambiguity: one pose.
 --
--- The covariance is `σ²·H⁻¹` of the final normal equations, and the confidence of an ambiguous
--- view compares the branches' squared errors, with `σ` the corner noise (`options.sigma`,
--- default `SIGMA`).
+-- The uncertainty (`tagpose.uncertainty`), σ being `options.sigma`, else the fit's residuals
+-- (`8n - 6` degrees of freedom for n tags, 2 for one) pooled with
+-- `tagpose.uncertainty.DEFAULT_SIGMA` as a tag's is:
+--
+-- - one tag seen: the tag's own — its branch probability and covariance as `tagpose.solve`
+--   gives them, the covariance moved from the tag to the body origin;
+-- - tags in one plane: `σ²·H⁻¹` of each minimum's normal equations, and the confidence of the
+--   two minima's Laplace evidence (their squared errors and the log-determinants of their
+--   normal equations);
+-- - tags on planes at an angle: `σ²·H⁻¹`, confidence 1.
 --
 -- Lengths are in the layout's unit, angles in radians, errors in pixels.
 -- @module tagpose.layout.solve
@@ -25,15 +32,14 @@ local args = require("tagpose.args")
 local compat = require("tagpose.compat")
 local fit = require("tagpose.layout.fit")
 local pipeline = require("tagpose.pipeline")
+local uncertainty = require("tagpose.uncertainty")
 
-local sqrt, exp, cos, huge = math.sqrt, math.exp, math.cos, math.huge
+local sqrt, cos, huge = math.sqrt, math.cos, math.huge
 local is_finite = compat.is_finite
 local mul_t = rotation.multiply_transpose
 
 local M = {}
 
---- Default standard deviation of the corner noise (px), for `covariance` and `confidence`.
-M.SIGMA = 0.5
 --- Tags whose normals are within this angle (radians) of one another...
 M.COPLANAR_ANGLE = math.rad(10)
 --- ... and whose centres lie within this distance (× the largest tag side) of one plane leave
@@ -41,6 +47,9 @@ M.COPLANAR_ANGLE = math.rad(10)
 M.COPLANAR_DISTANCE = 0.1
 --- Two minima closer than this angle (radians) are one.
 M.TWIN_ANGLE = 1e-6
+--- A minimum of a one-tag view whose tag rotation is within this angle (radians) of one of the
+-- tag's own candidates is on its branch (the uncertainty is then the tag's).
+M.SAME_BRANCH = math.rad(5)
 --- Default bound on the linearisations of one joint fit.
 M.MAX_ITERATIONS = 20
 
@@ -48,7 +57,6 @@ M.MAX_ITERATIONS = 20
 local points, pixels = {}, {}
 local corners = {}
 local start_r, start_t = {}, {} -- the starts: flat rotations (9 each), translations (3 each)
-local start_of = {} -- the used detection each start came from
 local r_a, r_b = {}, {}
 local normal_a, normal_b = {}, {}
 
@@ -67,19 +75,21 @@ local function solve_tag(camera, size)
     local c = k == 1 and w.first or w.second
     local r = {}
     for i = 1, 9 do r[i] = c.r[i] end
-    out[k] = { r = r, tx = c.tx, ty = c.ty, tz = c.tz }
+    local N = c.normal
+    out[k] = { r = r, tx = c.tx, ty = c.ty, tz = c.tz, sse = c.sse,
+      linearisations = c.linearisations, normal = { N[1], N[2], N[3],
+      N[4], N[5], N[6], N[7], N[8], N[9], N[10], N[11], N[12], N[13], N[14], N[15], N[16], N[17],
+      N[18], N[19], N[20], N[21] } }
   end
   return out
 end
 
--- integration: until tagpose.uncertainty lands, the probability of the branch of squared
--- error sse_a against the one of sse_b, from their likelihood ratio under Gaussian corner
--- noise of standard deviation sigma.
-local function confidence(sse_a, sse_b, sigma)
-  local d = (sse_b - sse_a) / (2 * sigma * sigma)
-  if d > 700 then return 1 end
-  if d < -700 then return 0 end
-  return 1 / (1 + exp(-d))
+-- σ² of the covariances: options.sigma², else the fit's residuals pooled with the default.
+local function noise(sse, n, sigma)
+  if sigma then return sigma * sigma end
+  local d = uncertainty.DEFAULT_SIGMA
+  local dof = n > 1 and 8 * n - 6 or 2
+  return (uncertainty.DEFAULT_DOF * d * d + sse) / (uncertainty.DEFAULT_DOF + dof)
 end
 
 -- Are the used tags all in one plane (normals and centres)?
@@ -196,7 +206,6 @@ local function gather(detections, camera, tags, skipped)
       for k = 1, #pose do
         starts = starts + 1
         add_start(starts, pose[k], tag)
-        start_of[starts] = n
       end
     else
       skipped[#skipped + 1] = { index = i, id = type(d) == "table" and d.id or nil,
@@ -206,24 +215,77 @@ local function gather(detections, camera, tags, skipped)
   return used, n, starts
 end
 
--- The public pose table of a minimum.
-local function result(r, x, y, z, sse, k, npts, N, sigma)
+-- The public pose table of a minimum (its covariance set by `uncertain`).
+local function result(r, x, y, z, sse, k, npts)
   local w, qx, qy, qz = rotation.to_quaternion(r)
-  local out = {
+  return {
     position = { x = x, y = y, z = z },
     rotation = rotation.to_nested(r),
     quaternion = { w = w, x = qx, y = qy, z = qz },
     error = sqrt(sse / npts),
     iterations = k,
   }
-  out.covariance = fit.covariance(N, sigma)
-  return out
+end
+
+-- Covariances and confidences of the body (minimum a) and its alternative (minimum b, or nil):
+-- see the module's header.
+local function uncertain(n, body, alt, a, b, s2)
+  if n == 1 then
+    local ta, tb = a.tag, b and b.tag
+    local conf, _, ka, kb, d1, d2, d3, d4, d5, d6 = uncertainty.assess(ta, tb, s2)
+    body.covariance = uncertainty.move(uncertainty.from_normal(ta.normal, s2, ka, d1, d2, d3,
+      d4, d5, d6), a.x - ta.tx, a.y - ta.ty, a.z - ta.tz)
+    body.confidence = conf
+    if b then
+      alt.covariance = uncertainty.move(uncertainty.from_normal(tb.normal, s2, kb, -d1, -d2,
+        -d3, -d4, -d5, -d6), b.x - tb.tx, b.y - tb.ty, b.z - tb.tz)
+      alt.confidence = 1 - conf
+    end
+    return
+  end
+  local ld_a, ld_b
+  body.covariance, ld_a = uncertainty.from_normal(a.normal, s2, 0, 0, 0, 0, 0, 0, 0)
+  body.confidence = 1
+  if b then
+    alt.covariance, ld_b = uncertainty.from_normal(b.normal, s2, 0, 0, 0, 0, 0, 0, 0)
+    body.confidence = uncertainty.probability((b.sse - a.sse) / (2 * s2) + 0.5 * (ld_b - ld_a))
+    alt.confidence = 1 - body.confidence
+  end
 end
 
 local function finite(r, x, y, z, sse)
   local s = x + y + z + sse
   for i = 1, 9 do s = s + r[i] end
   return is_finite(s)
+end
+
+-- The used tags' indices and ids, and the skipped detections, on the body.
+local function finish(body, used, n, skipped)
+  local list, ids = {}, {}
+  for i = 1, n do
+    list[i], ids[i] = used[i].index, used[i].id
+  end
+  body.tags, body.ids, body.skipped = list, ids, skipped
+  return body
+end
+
+-- A minimum of one tag seen alone: the body pose its candidate c implies.
+local function tag_minimum(c, k)
+  local r = {}
+  local x, y, z = get_start(k, r)
+  return { r = r, x = x, y = y, z = z, sse = c.sse, k = c.linearisations, tag = c }
+end
+
+-- One tag seen: its candidates (starts 1 and 2) are the minima.
+local function one_tag(used, skipped, o)
+  local pose = used[1].pose
+  local a = tag_minimum(pose[1], 1)
+  local b = pose[2] and tag_minimum(pose[2], 2)
+  local body = result(a.r, a.x, a.y, a.z, a.sse, a.k, 4)
+  local alt = b and result(b.r, b.x, b.y, b.z, b.sse, b.k, 4)
+  uncertain(1, body, alt, a, b, noise(a.sse, 1, o.sigma))
+  body.alternative = alt
+  return finish(body, used, 1, skipped)
 end
 
 --- Solve a layout's pose from one frame's detections.
@@ -242,6 +304,7 @@ function M.solve(detections, camera, tags, o)
       .. (why and " (detection " .. skipped[1].index .. ": " .. why .. ")" or "")
   end
   local npts = 4 * n
+  if n == 1 then return one_tag(used, skipped, o) end
   -- the best start over all the corners
   local best, best_cost = 1, huge
   for k = 1, starts do
@@ -254,17 +317,10 @@ function M.solve(detections, camera, tags, o)
   local cost_a, k_a, sse_a, cost_b, k_b, sse_b
   ax, ay, az, cost_a, k_a, sse_a = fit.fit(camera, points, pixels, npts, r_a, ax, ay, az, max_it,
     nil, normal_a)
-  -- the other branch, where the view is ambiguous: one tag's other pose, or the minimum
-  -- mirrored about the line of sight to the tags' plane
+  -- the other branch, where the view is ambiguous: the minimum mirrored about the line of
+  -- sight to the tags' plane
   local other, bx, by, bz = nil, nil, nil, nil
-  if n == 1 then
-    if best > 1 and start_of[best - 1] == start_of[best] then
-      other = best - 1
-    elseif best < starts and start_of[best + 1] == start_of[best] then
-      other = best + 1
-    end
-    if other then bx, by, bz = get_start(other, r_b) end
-  elseif coplanar(used, n) then
+  if coplanar(used, n) then
     other = true
     bx, by, bz = mirror(used, n, r_a, ax, ay, az, r_b)
   end
@@ -283,31 +339,15 @@ function M.solve(detections, camera, tags, o)
     for i = 1, 27 do normal_a[i] = normal_b[i] end
     ax, ay, az, sse_a, k_a, other = bx, by, bz, sse_b, k_b, nil
   end
-  local sigma = o.sigma or M.SIGMA
-  local body, alt
-  if other and sse_b < sse_a then
-    body = result(r_b, bx, by, bz, sse_b, k_b, npts, normal_b, sigma)
-    alt = result(r_a, ax, ay, az, sse_a, k_a, npts, normal_a, sigma)
-    body.confidence = confidence(sse_b, sse_a, sigma)
-  else
-    body = result(r_a, ax, ay, az, sse_a, k_a, npts, normal_a, sigma)
-    if other then
-      alt = result(r_b, bx, by, bz, sse_b, k_b, npts, normal_b, sigma)
-      body.confidence = confidence(sse_a, sse_b, sigma)
-    else
-      body.confidence = 1
-    end
-  end
-  if alt then
-    alt.confidence = 1 - body.confidence
-    body.alternative = alt
-  end
-  local list, ids = {}, {}
-  for i = 1, n do
-    list[i], ids[i] = used[i].index, used[i].id
-  end
-  body.tags, body.ids, body.skipped = list, ids, skipped
-  return body
+  local a = { r = r_a, x = ax, y = ay, z = az, sse = sse_a, k = k_a, normal = normal_a }
+  local b = other and { r = r_b, x = bx, y = by, z = bz, sse = sse_b, k = k_b,
+    normal = normal_b }
+  if b and b.sse < a.sse then a, b = b, a end
+  local body = result(a.r, a.x, a.y, a.z, a.sse, a.k, npts)
+  local alt = b and result(b.r, b.x, b.y, b.z, b.sse, b.k, npts)
+  uncertain(n, body, alt, a, b, noise(a.sse, n, o.sigma))
+  body.alternative = alt
+  return finish(body, used, n, skipped)
 end
 
 compat.interpret(M.solve)

@@ -1,0 +1,94 @@
+--- Blocks: how far to trust a block's pose — its covariance and, for a block seen with one
+-- face, the probability that its orientation is the true one of the two.
+--
+-- - A block fitted jointly (two or more faces, or one face with `up`): `σ² H⁻¹` of the joint
+--   fit's normal equations at its pose, the up and floor priors included (their weights are
+--   the frame's noise over their tolerances, so that they enter as the tolerances' variances).
+-- - A tag taken as a block without a fit (one face, no `up`): the tag pose's covariance
+--   (`tagpose.uncertainty`, with its ambiguity term) moved to the block centre `c = t + o`,
+--   `o` the centre relative to the tag: `δc = δt + δω × o`.
+--
+-- The confidence: 1 with two or more faces (one pose); with one face, the tag's branch
+-- probability, or with `up` the two fits' Laplace evidence (their costs, priors included, and
+-- the log-determinants of their normal equations). σ² is `options.sigma`², else the blocks'
+-- pixel residuals (`8k - 6` degrees of freedom for a fit of `k` tags, 2 for a tag alone)
+-- pooled with `tagpose.uncertainty.DEFAULT_SIGMA` as a single tag's σ² is.
+-- Covariances are nested 6×6, in the order (x, y, z, rx, ry, rz), as a tag's.
+-- @module tagpose.block.uncertainty
+
+local uncertainty = require("tagpose.uncertainty")
+local fit = require("tagpose.block.fit")
+
+local huge = math.huge
+
+local M = {}
+
+--- σ² (px²) of a frame's block covariances.
+-- @tparam table fr the frame record (`tagpose.block.frame`)
+-- @tparam {table,...} found the blocks found, `{h =, other =}` each
+-- @treturn number σ²
+function M.noise(fr, found)
+  local sigma = fr.settings.sigma
+  if sigma then return sigma * sigma end
+  local sse, dof = 0, 0
+  for i = 1, #found do
+    local h = found[i].h
+    local k = #h.members
+    sse, dof = sse + h.sse, dof + (k > 1 and 8 * k - 6 or 2)
+  end
+  local d = uncertainty.DEFAULT_SIGMA
+  return (uncertainty.DEFAULT_DOF * d * d + sse) / (uncertainty.DEFAULT_DOF + dof)
+end
+
+local normal = {} -- a joint fit's normal equations
+local tag_cov -- scratch: a tag's covariance before it is moved (made on first use)
+
+-- A hypothesis's covariance and the ln det of its normal equations (nil for a tag not fitted).
+local function fitted_covariance(fr, h, sigma2)
+  local cost = fit.normal(fr, h, normal)
+  if not (cost < huge) then return nil end
+  return uncertainty.from_normal(normal, sigma2, 0, 0, 0, 0, 0, 0, 0)
+end
+
+-- A one-face block's covariance from its tag's candidate a, the chord factor k and chord d.
+local function tag_covariance(a, sigma2, k, d1, d2, d3, d4, d5, d6)
+  local C = uncertainty.from_normal(a.tag.normal, sigma2, k, d1, d2, d3, d4, d5, d6, tag_cov)
+  tag_cov = C
+  return uncertainty.move(C, a.x - a.tag.tx, a.y - a.tag.ty, a.z - a.tag.tz)
+end
+
+--- Set `covariance` and `confidence` on a block's table (and its alternative's).
+-- @tparam table fr the frame record
+-- @tparam table f the block found, `{h =, other =}`
+-- @tparam table b its public table (`alternative` set when it has one)
+-- @tparam number sigma2 σ² (`noise`)
+function M.attach(fr, f, b, sigma2)
+  local h, o, a = f.h, f.other, b.alternative
+  if h.fitted then
+    local cov, ld = fitted_covariance(fr, h, sigma2)
+    b.covariance, b.confidence = cov, 1
+    if o and a then
+      local ocov, old = fitted_covariance(fr, o, sigma2)
+      a.covariance = ocov
+      local conf = 0.5
+      if cov and ocov then
+        conf = uncertainty.probability((o.cost - h.cost) / (2 * sigma2) + 0.5 * (old - ld))
+      end
+      b.confidence, a.confidence = conf, 1 - conf
+    end
+    return
+  end
+  -- a tag alone: its candidates' branch probability and covariances
+  local ca = fr.dets[h.members[1]].cands[h.cands[1]]
+  local cb = o and fr.dets[o.members[1]].cands[o.cands[1]]
+  local conf, _, ka, kb, d1, d2, d3, d4, d5, d6 = uncertainty.assess(ca.tag, cb and cb.tag,
+    sigma2)
+  b.covariance = tag_covariance(ca, sigma2, ka, d1, d2, d3, d4, d5, d6)
+  b.confidence = conf
+  if cb and a then
+    a.covariance = tag_covariance(cb, sigma2, kb, -d1, -d2, -d3, -d4, -d5, -d6)
+    a.confidence = 1 - conf
+  end
+end
+
+return M

@@ -1,0 +1,357 @@
+--- The uncertainty of a tag pose: the covariance of each candidate of the planar ambiguity and the
+-- probability that it is on the true branch, from the candidates' Gauss-Newton normal equations
+-- and σ (docs/uncertainty.md derives all of it and measures it).
+--
+-- A candidate is a record `{r =, tx =, ty =, tz =, sse =, normal =}` (`tagpose.pipeline`'s): `r`
+-- the flat row-major rotation tag → camera, `t` the tag centre in the camera frame (tag-size
+-- units), `sse` the sum of squared pixel residuals of the four corners, `normal` its normal
+-- equations (H in the first 21 numbers, `tagpose.lsq`'s layout; pixels, no σ), and optionally
+-- `qw, qx, qy, qz`, the rotation's unit quaternion. `sigma2` is σ² in px².
+--
+-- Covariances are nested 6×6 tables `c[i][j]`, in the order (x, y, z, rx, ry, rz): position in
+-- tag-size units and a small rotation vector `r` in the camera frame, `R_true = exp([r]×) R`
+-- (refine's left update). Each is σ² H⁻¹ plus, where the two candidates are the two minima of
+-- the planar ambiguity, a rank-one term along the chord between them: the posterior of a branch
+-- is not Gaussian along the tilt (a double well whose barrier is low when the tag is small,
+-- far or nearly face-on, and whose truth lies more often towards the other minimum). How much
+-- comes from the ambiguity's tilt-plane model (`tagpose.uncertainty.model`). The branch
+-- probability is the two basins' posterior masses (Laplace at each minimum, a tilt prior
+-- uniform in angle, the same model's correction for the barrier), its far tail softened by
+-- `SPREAD`.
+--
+-- The branch probability (`assess`) is cheap: the factors of each H and one quadratic form
+-- each. A covariance costs a full inverse and its table: `tagpose.solve` makes it when it is
+-- first read (`resolve`).
+-- @module tagpose.uncertainty
+
+local compat = require("tagpose.compat")
+local rotation = require("tagpose.rotation")
+local matrix = require("tagpose.uncertainty.matrix")
+local model = require("tagpose.uncertainty.model")
+
+local sqrt, log, exp, max, huge = math.sqrt, math.log, math.exp, math.max, math.huge
+local atan2 = compat.atan2
+local to_quaternion = rotation.to_quaternion
+local factor, variance, inverse, fill = matrix.factor, matrix.variance, matrix.inverse,
+  matrix.fill
+
+local M = {}
+
+--- σ (px) assumed when none is given: a corner detector on a robot camera (the real AprilTag
+-- detector's corner error on clean renders is ~0.12 px; 0.3-0.5 px on a robot).
+M.DEFAULT_SIGMA = 0.5
+--- Weight of `DEFAULT_SIGMA` in degrees of freedom, against the 2 of one frame's residuals:
+-- `σ² = (DEFAULT_DOF · DEFAULT_SIGMA² + sse) / (DEFAULT_DOF + 2)`.
+M.DEFAULT_DOF = 8
+--- Weight of one frame's branch log-odds L (a fractional likelihood; 1: the evidence as is).
+-- Fitted by maximum likelihood on 133 000 synthetic ambiguous rows it is 0.95 ± 0.05.
+M.KAPPA = 1
+--- Relative error of L: the confidence is the logistic function of L averaged over
+-- L (1 + ε), ε ~ N(0, SPREAD²) (by the probit approximation,
+-- `1 / (1 + exp(-z / sqrt(1 + π SPREAD² z² / 8)))`, z = KAPPA L). It caps a confidence at
+-- about 0.995: the Laplace evidence is over-confident in its far tail on small noisy tags
+-- (docs/uncertainty.md measures it), where a wrong branch at a confidence of 0.95 or more
+-- costs a robot most.
+M.SPREAD = 0.3
+
+-- below this sine of the tilt (0.06°) a candidate is face-on: no tilt direction
+local FACE_ON = 1e-3
+-- log-odds beyond which one branch is decided: the tilt-plane terms (a few units at most)
+-- move the confidence there by less than 1e-3, and a minimum that much better than the other
+-- is a well of its own (no chord term)
+local DECIDED = 40
+
+-- scratch, written in place on every call and never handed out
+local factors_a, factors_b = {}, {} -- the LDLᵀ factors of the two candidates' H
+local packed = {} -- a packed H⁻¹
+local product = {} -- a flat rotation
+local both, logdets = {}, {} -- the two candidates' normal equations, and their ln det H
+
+-- The tilt of a pose: the component a of the tag's normal n across the line of sight l to its
+-- centre, as sin θ = |a| and a itself, with n·l and |t|.
+local function tilt(r, tx, ty, tz)
+  local nt = sqrt(tx * tx + ty * ty + tz * tz)
+  local l1, l2, l3 = tx / nt, ty / nt, tz / nt
+  local n1, n2, n3 = r[3], r[6], r[9]
+  local nl = n1 * l1 + n2 * l2 + n3 * l3
+  local a1, a2, a3 = n1 - nl * l1, n2 - nl * l2, n3 - nl * l3
+  return sqrt(a1 * a1 + a2 * a2 + a3 * a3), a1, a2, a3, nl, nt
+end
+
+-- The separation, in its own marginal standard deviations squared, of candidate c (its
+-- rotation r, its tilt s, a, n·l, |t|) from the other's tilt (b) along c's tilt direction
+-- p = a / s; F the factors of c's H, sigma2 σ². The tilt coordinate x = a·p moves with a pose
+-- step (δω, δt) by (n × p)·δω - (n·l) p·δt / |t|, whose variance is σ² qᵀ H⁻¹ q for that q.
+-- 0 when the other is not across. (Branch-free: the caller tests once, so that few values are
+-- live where it branches.)
+local function separation(r, F, sigma2, s, a1, a2, a3, nl, nt, b1, b2, b3)
+  local p1, p2, p3 = a1 / s, a2 / s, a3 / s
+  local sep = s - (b1 * p1 + b2 * p2 + b3 * p3)
+  local n1, n2, n3 = r[3], r[6], r[9]
+  local k = -nl / nt
+  local var = sigma2 * variance(F, n2 * p3 - n3 * p2, n3 * p1 - n1 * p3, n1 * p2 - n2 * p1,
+    k * p1, k * p2, k * p3)
+  return max(sep, 0) ^ 2 / max(var, 1e-300)
+end
+
+-- The tilt-plane part of the log-odds and the chord factors, when both candidates are off
+-- face-on and across each other's tilt; else 0, 0, 0.
+local function tilted(a, b, Fa, Fb, sigma2, dc)
+  local sa, a1, a2, a3, anl, ant = tilt(a.r, a.tx, a.ty, a.tz)
+  local sb, b1, b2, b3, bnl, bnt = tilt(b.r, b.tx, b.ty, b.tz)
+  local d2a = separation(a.r, Fa, sigma2, sa, a1, a2, a3, anl, ant, b1, b2, b3)
+  local d2b = separation(b.r, Fb, sigma2, sb, b1, b2, b3, bnl, bnt, a1, a2, a3)
+  if not (sa > FACE_ON and sb > FACE_ON and d2a > 0 and d2b > 0 and d2a < huge
+    and d2b < huge) then
+    return 0, 0, 0
+  end
+  local phi_a, va = model.lookup(d2a, dc)
+  local phi_b, vb = model.lookup(d2b, -dc)
+  -- the basins' shapes, and the tilt prior (uniform in angle: density ∝ 1 / sin θ)
+  return phi_a - phi_b + log(sb / sa), (va - 1) / d2a, (vb - 1) / d2b
+end
+
+--- The branch log-odds of candidate a over b and each one's chord factor (the model's extra
+-- variance along the chord to the other, over the chord's square), from their factors.
+-- @tparam table a a candidate record
+-- @tparam table b the other minimum
+-- @tparam number sigma2 σ² (px²)
+-- @treturn number L, ln(P(a's branch) / P(b's branch)) given this frame, untempered
+-- @treturn number a's chord factor
+-- @treturn number b's chord factor
+function M.analyse(a, b, sigma2)
+  local Fa, Fb = factors_a, factors_b
+  -- (a loop over the two: on LuaJIT it starts a trace of its own instead of swelling the
+  -- solve's)
+  both[1], both[2] = a.normal, b.normal
+  for c = 1, 2 do logdets[c] = factor(both[c], c == 1 and Fa or Fb) end
+  local dc = (b.sse - a.sse) / sigma2
+  -- Laplace: each basin's mass exp(-χ²/2) (2π)³ det(H/σ²)^(-1/2), σ cancels in the ratio
+  local L = 0.5 * dc + 0.5 * (logdets[2] - logdets[1])
+  if L > DECIDED or L < -DECIDED then return L, 0, 0 end
+  local shape, ka, kb = tilted(a, b, Fa, Fb, sigma2, dc)
+  L = L + shape
+  if not (L == L) then L = 0 end
+  return L, ka, kb
+end
+
+local analyse = M.analyse
+
+--- σ² to use: `sigma²` when given, else `DEFAULT_SIGMA²` pooled with one frame's residuals.
+-- @tparam number sse the best candidate's sum of squared pixel residuals (px², 2 degrees of
+--   freedom)
+-- @tparam[opt] number sigma σ in pixels (`options.sigma`)
+-- @treturn number σ² (px²)
+function M.noise(sse, sigma)
+  if sigma then return sigma * sigma end
+  local d = M.DEFAULT_SIGMA
+  return (M.DEFAULT_DOF * d * d + sse) / (M.DEFAULT_DOF + 2)
+end
+
+--- The per-frame log-likelihood ratio between the branches of a and b: ln of the posterior mass
+-- of a's basin over b's given this frame's corners (σ² known, branches equally likely a
+-- priori, the tilt uniform in angle within each). A tracker adds `KAPPA` times it to its
+-- carried log-odds each frame, the way `probability` turns it into a confidence.
+-- @tparam table a a candidate record
+-- @tparam table b the other candidate
+-- @tparam number sigma2 σ² (px²)
+-- @treturn number ln(P(a's branch | this frame) / P(b's branch | this frame)), untempered
+function M.log_odds(a, b, sigma2)
+  return (analyse(a, b, sigma2))
+end
+
+--- The confidence of a branch whose log-odds are L: the logistic function of `KAPPA` L with
+-- the spread `SPREAD` (see there).
+-- @tparam number L log-odds (`log_odds`)
+-- @treturn number the probability, in [0, 1]
+function M.probability(L)
+  local z = M.KAPPA * L
+  local t = M.SPREAD
+  if t > 0 then z = z / sqrt(1 + 0.39269908169872414 * t * t * z * z) end
+  if not (z == z) then return 0.5 end
+  return 1 / (1 + exp(-z))
+end
+
+--- The chord from candidate a to b: the rotation vector of rb raᵀ, then tb - ta (from the
+-- records' quaternions when they carry them, qb qa⁻¹).
+-- @tparam table a a candidate record
+-- @tparam table b another
+-- @treturn number δω1, δω2, δω3, δt1, δt2, δt3
+function M.chord(a, b)
+  local w, x, y, z
+  local aw, bw = a.qw, b.qw
+  if aw and bw then
+    local ax, ay, az, bx, by, bz = -a.qx, -a.qy, -a.qz, b.qx, b.qy, b.qz
+    w = bw * aw - bx * ax - by * ay - bz * az
+    x = bw * ax + bx * aw + by * az - bz * ay
+    y = bw * ay - bx * az + by * aw + bz * ax
+    z = bw * az + bx * ay - by * ax + bz * aw
+    if w < 0 then w, x, y, z = -w, -x, -y, -z end
+  else
+    rotation.multiply_transpose(b.r, a.r, product)
+    w, x, y, z = to_quaternion(product)
+  end
+  local s = sqrt(x * x + y * y + z * z)
+  local f = 2
+  if s > 1e-12 then f = 2 * atan2(s, w) / s end
+  return f * x, f * y, f * z, b.tx - a.tx, b.ty - a.ty, b.tz - a.tz
+end
+
+local chord = M.chord
+
+--- The covariance of a pose from its H, σ² and a rank-one term along a chord,
+-- `σ² H⁻¹ + k d dᵀ`, in the contract's order (k, from `assess`, already carries σ²: it is the
+-- model's extra variance along the tilt over the chord's square in those variances).
+-- @tparam {number,...} N the normal equations (H in the first 21 numbers)
+-- @tparam number sigma2 σ² (px²)
+-- @tparam number k the chord's factor (0: none)
+-- @tparam number d1 the chord, (δω, δt)
+-- @tparam number d2
+-- @tparam number d3
+-- @tparam number d4
+-- @tparam number d5
+-- @tparam number d6
+-- @tparam[opt] table out nested 6×6 to fill (nil: a new one)
+-- @treturn table the covariance
+-- @treturn number ln det H (pivots below 1e-12 of their diagonal raised to it)
+function M.from_normal(N, sigma2, k, d1, d2, d3, d4, d5, d6, out)
+  local ld = factor(N, factors_a)
+  return fill(out, inverse(factors_a, packed), sigma2, k, d1, d2, d3, d4, d5, d6), ld
+end
+
+--- The textbook covariance of one candidate, σ² H⁻¹ (no ambiguity correction): for a pose that
+-- is the only minimum.
+-- @tparam table c a candidate record
+-- @tparam number sigma2 σ² (px²)
+-- @tparam[opt] table out nested 6×6 to fill (nil: a new one)
+-- @treturn table the covariance
+-- @treturn number ln det H
+function M.covariance(c, sigma2, out)
+  return M.from_normal(c.normal, sigma2, 0, 0, 0, 0, 0, 0, 0, out)
+end
+
+--- The probability that a is on the true branch, and what each candidate's covariance needs
+-- beyond its H: the chord factors and the chord.
+-- @tparam table a a candidate record
+-- @tparam[opt] table b the other minimum of the planar ambiguity (nil: a is the only one)
+-- @tparam number sigma2 σ² (px²)
+-- @treturn number a's confidence, in [0, 1] (b's is its complement)
+-- @treturn number the untempered log-odds (`math.huge` without b)
+-- @treturn number a's chord factor
+-- @treturn number b's chord factor
+-- @treturn number the chord from a to b, six numbers (zero without b)
+function M.assess(a, b, sigma2)
+  if not b then return 1, huge, 0, 0, 0, 0, 0, 0, 0, 0 end
+  local L, ka, kb = analyse(a, b, sigma2)
+  local d1, d2, d3, d4, d5, d6 = 0, 0, 0, 0, 0, 0
+  if ka ~= 0 or kb ~= 0 then d1, d2, d3, d4, d5, d6 = chord(a, b) end
+  return M.probability(L), L, ka, kb, d1, d2, d3, d4, d5, d6
+end
+
+--- Both candidates' covariances and the probability that a is on the true branch, at once.
+-- With `b` nil, a is the only minimum: its covariance is σ² H⁻¹ and its confidence 1.
+-- @tparam table a a candidate record
+-- @tparam[opt] table b the other minimum of the planar ambiguity
+-- @tparam number sigma2 σ² (px²)
+-- @tparam[opt] table cov_a nested 6×6 to fill with a's covariance (nil: a new one)
+-- @tparam[opt] table cov_b the same for b's
+-- @treturn number a's confidence, in [0, 1] (b's is its complement)
+-- @treturn number the untempered log-odds (`log_odds`); `math.huge` without b
+-- @treturn table a's covariance (cov_a, or the new one)
+-- @treturn table b's covariance, or nil without b
+function M.pair(a, b, sigma2, cov_a, cov_b)
+  local conf, L, ka, kb, d1, d2, d3, d4, d5, d6 = M.assess(a, b, sigma2)
+  cov_a = M.from_normal(a.normal, sigma2, ka, d1, d2, d3, d4, d5, d6, cov_a)
+  if b then cov_b = M.from_normal(b.normal, sigma2, kb, d1, d2, d3, d4, d5, d6, cov_b) end
+  return conf, L, cov_a, b and cov_b or nil
+end
+
+--- The covariance of a point carried rigidly by a pose, from the pose's: the point at
+-- `o` from the pose's origin (camera frame) moves by `δc = δt + δω × o`, the rotation's
+-- covariance stays; `J C Jᵀ`, `J = [[I, -[o]×], [0, I]]` in the contract's order.
+-- @tparam table C the pose's covariance (nested 6×6, position first)
+-- @tparam number o1 the point relative to the pose's origin, camera frame
+-- @tparam number o2
+-- @tparam number o3
+-- @tparam[opt] table out nested 6×6 to fill (nil: a new one)
+-- @treturn table the point's covariance
+function M.move(C, o1, o2, o3, out)
+  out = out or { {}, {}, {}, {}, {}, {} }
+  -- the rows of -[o]×
+  local m1, m2, m3 = { 0, o3, -o2 }, { -o3, 0, o1 }, { o2, -o1, 0 }
+  local m = { m1, m2, m3 }
+  local A = {} -- rows 1..3 of J C
+  for i = 1, 3 do
+    local mi, row = m[i], {}
+    for j = 1, 6 do
+      row[j] = C[i][j] + mi[1] * C[4][j] + mi[2] * C[5][j] + mi[3] * C[6][j]
+    end
+    A[i] = row
+  end
+  for i = 1, 3 do
+    local Ai = A[i]
+    for j = i, 3 do
+      local mj = m[j]
+      local v = Ai[j] + mj[1] * Ai[4] + mj[2] * Ai[5] + mj[3] * Ai[6]
+      out[i][j], out[j][i] = v, v
+    end
+    for j = 4, 6 do out[i][j], out[j][i] = Ai[j], Ai[j] end
+  end
+  for i = 4, 6 do
+    for j = 4, 6 do out[i][j] = C[i][j] end
+  end
+  return out
+end
+
+-- A covariance made when first read: the pose table's metatable holds what it needs, in its
+-- array part (H in 1..21, σ² 22, the chord factor 23, the chord 24..29, the table to fill 30),
+-- and its __index makes it.
+local function lazy_index(t, key)
+  if key ~= "covariance" then return nil end
+  local p = getmetatable(t)
+  local cov = M.from_normal(p, p[22], p[23], p[24], p[25], p[26], p[27], p[28], p[29],
+    p[30] or nil)
+  p[30] = cov
+  rawset(t, "covariance", cov)
+  return cov
+end
+
+--- Give a pose table a covariance made when it is first read, `σ² H⁻¹ + k d dᵀ`, from what
+-- is copied here (the candidate's H, σ², the chord factor and chord) into the pose's
+-- metatable. A later call on the same table refills the same covariance table, so a caller
+-- who reuses one pose table allocates nothing.
+-- @tparam table t the pose table (its metatable is set)
+-- @tparam table c its candidate record
+-- @tparam number sigma2 σ² (px²)
+-- @tparam number k the chord factor (0: none)
+-- @tparam number d1 the chord, (δω, δt)
+-- @tparam number d2
+-- @tparam number d3
+-- @tparam number d4
+-- @tparam number d5
+-- @tparam number d6
+-- @treturn table t
+function M.resolve(t, c, sigma2, k, d1, d2, d3, d4, d5, d6)
+  local p = getmetatable(t)
+  local N = c.normal
+  if not (p and p.__index == lazy_index) then
+    p = { N[1], N[2], N[3], N[4], N[5], N[6], N[7], N[8], N[9], N[10], N[11], N[12], N[13],
+      N[14], N[15], N[16], N[17], N[18], N[19], N[20], N[21], sigma2, k, d1, d2, d3, d4, d5,
+      d6, false, __index = lazy_index }
+    return setmetatable(t, p)
+  end
+  p[1], p[2], p[3], p[4], p[5], p[6], p[7] = N[1], N[2], N[3], N[4], N[5], N[6], N[7]
+  p[8], p[9], p[10], p[11], p[12], p[13], p[14] = N[8], N[9], N[10], N[11], N[12], N[13], N[14]
+  p[15], p[16], p[17], p[18], p[19], p[20], p[21] = N[15], N[16], N[17], N[18], N[19], N[20],
+    N[21]
+  p[22], p[23], p[24], p[25], p[26], p[27], p[28], p[29] = sigma2, k, d1, d2, d3, d4, d5, d6
+  -- a covariance read before is made again, into its own table
+  local old = rawget(t, "covariance")
+  if type(old) == "table" then
+    p[30] = old
+    rawset(t, "covariance", nil)
+  end
+  return t
+end
+
+return M
