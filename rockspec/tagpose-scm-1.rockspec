@@ -61,7 +61,11 @@ build = {
     ["tagpose.solvequad"] = "src/tagpose/solvequad.lua",
     ["tagpose.square"] = "src/tagpose/square.lua",
     ["tagpose.track"] = "src/tagpose/track.lua",
-    ["tagpose.yaml"] = "src/tagpose/yaml.lua",
+    ["tagpose.yaml"] = "src/tagpose/yaml/init.lua",
+    ["tagpose.yaml.block"] = "src/tagpose/yaml/block.lua",
+    ["tagpose.yaml.flow"] = "src/tagpose/yaml/flow.lua",
+    ["tagpose.yaml.scalar"] = "src/tagpose/yaml/scalar.lua",
+    ["tagpose.yaml.scanner"] = "src/tagpose/yaml/scanner.lua",
   },
 }
 test = {
