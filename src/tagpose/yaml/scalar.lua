@@ -166,14 +166,15 @@ function M.tag_at(st, li, p)
   return tname, e
 end
 
---- Put a tag on the value it tags, refusing anything but a mapping.
+--- Put a tag on the value it tags, refusing anything but a mapping (an empty value too: it
+-- is the one `NULL` of every document, which must never carry a tag).
 -- @tparam table st the reading state
 -- @param value
 -- @tparam string tname
 -- @tparam int at the line, for the refusal
 -- @treturn table the value
 function M.apply_tag(st, value, tname, at)
-  if type(value) ~= "table" or value[1] ~= nil then
+  if type(value) ~= "table" or value == NULL or value[1] ~= nil then
     fail(st, "!!" .. tname .. " tags a mapping", at)
   end
   value[M.TAG] = tname
