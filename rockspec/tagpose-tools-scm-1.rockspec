@@ -25,6 +25,7 @@ build = {
   type = "builtin",
   modules = {
     ["tagpose.tools.calibrate"] = "src/tagpose/tools/calibrate.lua",
+    ["tagpose.tools.csv"] = "src/tagpose/tools/csv.lua",
     ["tagpose.tools.log"] = "src/tagpose/tools/log.lua",
     ["tagpose.tools.plot"] = "src/tagpose/tools/plot.lua",
     ["tagpose.tools.replay"] = "src/tagpose/tools/replay.lua",
