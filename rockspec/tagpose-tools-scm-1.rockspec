@@ -28,7 +28,12 @@ build = {
     ["tagpose.tools.csv"] = "src/tagpose/tools/csv.lua",
     ["tagpose.tools.log"] = "src/tagpose/tools/log.lua",
     ["tagpose.tools.plot"] = "src/tagpose/tools/plot.lua",
-    ["tagpose.tools.replay"] = "src/tagpose/tools/replay.lua",
+    ["tagpose.tools.replay"] = "src/tagpose/tools/replay/init.lua",
+    ["tagpose.tools.replay.command"] = "src/tagpose/tools/replay/command.lua",
+    ["tagpose.tools.replay.compare"] = "src/tagpose/tools/replay/compare.lua",
+    ["tagpose.tools.replay.frames"] = "src/tagpose/tools/replay/frames.lua",
+    ["tagpose.tools.replay.stats"] = "src/tagpose/tools/replay/stats.lua",
+    ["tagpose.tools.replay.summary"] = "src/tagpose/tools/replay/summary.lua",
   },
   install = {
     bin = {
