@@ -59,16 +59,19 @@ function M.new(text, name)
     peeked_value = nil, peeked_line = nil }
 end
 
--- count the line ends in text[i..j] (\r\n, \n\r, \n and \r each one, as Lua counts them)
+-- count the line ends in text[i..j] (\r\n, \n\r, \n and \r each one, as Lua counts them),
+-- looking at those bytes only: a search for the next line end in the whole text would scan
+-- the rest of a long line at every token (quadratic in the length of the line)
 local function count_lines(lx, i, j)
-  local text = lx.text
-  while true do
-    local k = find(text, "[\r\n]", i)
-    if not k or k > j then return end
-    local c, d = byte(text, k), byte(text, k + 1)
-    if k < j and (d == LF or d == CR) and d ~= c then k = k + 1 end
+  if j < i then return end
+  local s = sub(lx.text, i, j)
+  local k = find(s, "[\r\n]")
+  local m = #s
+  while k do
+    local c, d = byte(s, k), byte(s, k + 1)
+    if k < m and (d == LF or d == CR) and d ~= c then k = k + 1 end
     lx.line = lx.line + 1
-    i = k + 1
+    k = find(s, "[\r\n]", k + 1)
   end
 end
 
