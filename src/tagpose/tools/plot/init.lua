@@ -158,19 +158,22 @@ function M.recorder(options)
   return recorder_model.new(rotation, options.max_points or M.MAX_POINTS, M)
 end
 
+-- check the options of draw or poses (fname), argument n; a misuse is blamed on the caller of
+-- draw or poses, one level above this helper's caller
 local function check_title(fname, n, options)
+  local function refuse(message) args.raise(n, fname, message, 4) end
   if options.title ~= nil and type(options.title) ~= "string" then
-    raise(n, fname, "options.title: string expected, got " .. args.describe(options.title))
+    refuse("options.title: string expected, got " .. args.describe(options.title))
   end
   for _, name in ipairs({ "width", "panel_height" }) do
     local v = options[name]
     if v ~= nil and not (is_finite(v) and v >= 100) then
-      raise(n, fname, "options." .. name .. ": number >= 100 expected, got " .. args.describe(v))
+      refuse("options." .. name .. ": number >= 100 expected, got " .. args.describe(v))
     end
   end
   local unit = options.length_unit
   if unit ~= nil and type(unit) ~= "string" then
-    raise(n, fname, "options.length_unit: string expected, got " .. args.describe(unit))
+    refuse("options.length_unit: string expected, got " .. args.describe(unit))
   end
 end
 
