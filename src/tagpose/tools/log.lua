@@ -341,12 +341,15 @@ function M.pose_writer(target)
   return self
 end
 
+-- write the pending lines (once the target has failed, drop them: memory stays bounded)
 function Writer:flush()
   local pending = self.pending
-  if #pending == 0 or self.err then return end
-  pending[#pending + 1] = ""
-  local ok, err = self.f:write(concat(pending, "\n"))
-  if not ok then self.err = tostring(err) end
+  if #pending == 0 then return end
+  if not self.err then
+    pending[#pending + 1] = ""
+    local ok, err = self.f:write(concat(pending, "\n"))
+    if not ok then self.err = tostring(err) end
+  end
   self.pending = {}
 end
 
