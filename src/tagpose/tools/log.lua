@@ -23,16 +23,17 @@
 -- that is not finite is left to the solver to refuse. Anything else (hexadecimal, `1,5`,
 -- text) is not a number.
 --
--- Readers take a path or an open file and read it in chunks: memory holds one row at a time.
--- This module does file I/O, so it is for tools and replay, not for the solve path.
+-- Readers take a path or an open file and read it in chunks (`tagpose.tools.csv`): memory
+-- holds one row at a time. This module does file I/O, so it is for tools and replay, not for
+-- the solve path.
 -- @module tagpose.tools.log
 
 local compat = require("tagpose.compat")
 local calibration = require("tagpose.calibration")
+local csv_table = require("tagpose.tools.csv")
 
 local decimal = compat.decimal
-local byte, sub, find, gmatch, concat = string.byte, string.sub, string.find, string.gmatch,
-  table.concat
+local concat = table.concat
 local floor, huge = math.floor, math.huge
 
 local M = {}
@@ -45,9 +46,6 @@ M.POSE_COLUMNS = { "frame", "tag", "x", "y", "z", "qw", "qx", "qy", "qz", "error
 M.MAX_RECORD = 1048576
 --- Most columns a header may name.
 M.MAX_COLUMNS = 10000
-
-local CHUNK = 65536
-local QUOTE, COMMA, HASH, SPACE, TAB = 34, 44, 35, 32, 9
 
 --- The number a CSV field denotes, or nil: a decimal numeral, or `nan`, `inf`, `infinity`
 -- (any case, optionally signed).
@@ -71,212 +69,7 @@ local function is_finite(v)
   return v == v and v < huge and v > -huge
 end
 
--- physical lines, read in chunks
-
-local Lines = {}
-Lines.__index = Lines
-
-local function open_lines(source)
-  local f, owned = source, false
-  if type(source) == "string" then
-    local err
-    f, err = io.open(source, "rb")
-    if not f then return nil, err end
-    owned = true
-  end
-  return setmetatable({ f = f, owned = owned, buf = "", pos = 1, line = 0, eof = false,
-    started = false, pending_cr = false }, Lines)
-end
-
-function Lines:load()
-  if self.eof then return false end
-  local chunk, err = self.f:read(CHUNK)
-  if chunk == nil or chunk == "" then
-    self.eof = true
-    self.err = err
-    self.buf, self.pos = "", 1
-    return false
-  end
-  self.buf, self.pos = chunk, 1
-  if not self.started then
-    self.started = true
-    if sub(chunk, 1, 3) == "\239\187\191" then self.pos = 4 end
-  end
-  if self.pending_cr then
-    self.pending_cr = false
-    if byte(chunk, self.pos) == 10 then self.pos = self.pos + 1 end
-  end
-  return true
-end
-
--- the next line without its end: a string, false for a line longer than MAX_RECORD (read
--- through), or nil at the end; self.line is its number
-function Lines:next()
-  local parts, size = nil, 0
-  while true do
-    if self.pos > #self.buf and not self:load() then
-      if parts == nil then return nil end
-      self.line = self.line + 1
-      if size > M.MAX_RECORD then return false end
-      return concat(parts)
-    end
-    local buf, pos = self.buf, self.pos
-    local i = find(buf, "[\r\n]", pos)
-    if not i then
-      -- the line goes on in the next chunk
-      size = size + #buf - pos + 1
-      if size <= M.MAX_RECORD then
-        parts = parts or {}
-        parts[#parts + 1] = sub(buf, pos)
-      end
-      self.pos = #buf + 1
-    else
-      local j = i
-      if byte(buf, i) == 13 then
-        if i == #buf then
-          self.pending_cr = true
-        elseif byte(buf, i + 1) == 10 then
-          j = i + 1
-        end
-      end
-      self.pos = j + 1
-      self.line = self.line + 1
-      size = size + i - pos
-      if size > M.MAX_RECORD then return false end
-      if parts == nil then return sub(buf, pos, i - 1) end
-      parts[#parts + 1] = sub(buf, pos, i - 1)
-      return concat(parts)
-    end
-  end
-end
-
-function Lines:close()
-  if self.owned and self.f then self.f:close() end
-  self.f = nil
-end
-
--- CSV records
-
--- the last position before j + 1 that is not a space or tab, at least i - 1 (linear)
-local function rtrim_end(s, i, j)
-  while j >= i do
-    local b = byte(s, j)
-    if b ~= SPACE and b ~= TAB then break end
-    j = j - 1
-  end
-  return j
-end
-
-local Csv = {}
-Csv.__index = Csv
-
--- the next record: fields (at most `limit` kept), its first line and the number of fields;
--- false, line, reason for a malformed one; nil at the end
-function Csv:record(limit)
-  local lines = self.lines
-  local s
-  while true do
-    s = lines:next()
-    if s == nil then return nil end
-    if s == false then
-      return false, lines.line, "line longer than " .. M.MAX_RECORD .. " bytes"
-    end
-    local q = find(s, "[^ \t]")
-    if q and byte(s, q) ~= HASH then break end
-  end
-  local start = lines.line
-  local fields, count, p = {}, 0, 1
-  if not find(s, '"', 1, true) then
-    -- no quotes: split at the commas
-    for field in gmatch(s .. ",", "([^,]*),") do
-      count = count + 1
-      if count <= limit then
-        local b, e = byte(field, 1), byte(field, -1)
-        if b == SPACE or b == TAB or e == SPACE or e == TAB then
-          local q = find(field, "[^ \t]")
-          field = q and sub(field, q, rtrim_end(field, q, #field)) or ""
-        end
-        fields[count] = field
-      end
-    end
-    return fields, start, count
-  end
-  local bad = nil
-  while true do
-    local q, b = p, byte(s, p)
-    if b == SPACE or b == TAB then
-      q = find(s, "[^ \t]", p)
-      b = q and byte(s, q)
-    end
-    if b == QUOTE then
-      -- a quoted field, possibly across lines
-      local parts, size, pos = {}, 0, q + 1
-      local close
-      while true do
-        local i = find(s, '"', pos, true)
-        if i and byte(s, i + 1) == QUOTE then
-          if size <= M.MAX_RECORD then parts[#parts + 1] = sub(s, pos, i) end
-          size = size + i - pos + 1
-          pos = i + 2
-        elseif i then
-          if size <= M.MAX_RECORD then parts[#parts + 1] = sub(s, pos, i - 1) end
-          size = size + i - pos
-          close = i
-          break
-        else
-          if size <= M.MAX_RECORD then parts[#parts + 1] = sub(s, pos) .. "\n" end
-          size = size + #s - pos + 2
-          s = lines:next()
-          if s == nil then
-            return false, start, "quoted field " .. (count + 1) .. " not closed"
-          end
-          if s == false then
-            s = ""
-            size = M.MAX_RECORD + 1
-          end
-          pos = 1
-        end
-      end
-      count = count + 1
-      if size > M.MAX_RECORD then
-        bad = bad or ("quoted field " .. count .. " longer than " .. M.MAX_RECORD .. " bytes")
-      elseif count <= limit then
-        fields[count] = concat(parts)
-      end
-      local r = find(s, "[^ \t]", close + 1)
-      if r == nil then break end
-      if byte(s, r) ~= COMMA then
-        bad = bad or ("text after the closing quote of field " .. count)
-        break
-      end
-      p = r + 1
-    else
-      local e = find(s, '[,"]', p)
-      if e and byte(s, e) == QUOTE then
-        bad = bad or ("a quote inside field " .. (count + 1) .. " (quote the whole field, with"
-          .. " \"\" for a quote)")
-        break
-      end
-      e = e or #s + 1
-      count = count + 1
-      if count <= limit then
-        if q == nil or q >= e then
-          fields[count] = ""
-        else
-          local last = byte(s, e - 1)
-          fields[count] = sub(s, q, (last == SPACE or last == TAB) and rtrim_end(s, q, e - 1)
-            or e - 1)
-        end
-      end
-      if e > #s then break end
-      p = e + 1
-    end
-  end
-  if bad then return false, start, bad end
-  return fields, start, count
-end
-
---- Open a CSV table with a header line, to read it row by row.
+--- Open a CSV table with a header line, to read it row by row (`tagpose.tools.csv`).
 -- @tparam string|file source a path or an open file (left open by `close`)
 -- @tparam[opt] {string,...} required column names that must be in the header
 -- @treturn table the reader: `header` (the column names), `column` (name → index),
@@ -286,69 +79,9 @@ end
 -- @return nil, string when the source cannot be opened, has no header, or the header names a
 --   column twice, leaves one unnamed, or lacks a required column
 function M.csv_reader(source, required)
-  local lines, err = open_lines(source)
-  if not lines then return nil, "log: " .. tostring(err) end
-  local self = setmetatable({ lines = lines }, Csv)
-  local header, line, count = self:record(M.MAX_COLUMNS)
-  if header == false then
-    lines:close()
-    return nil, "log: header: " .. count .. " (line " .. line .. ")"
-  end
-  if header == nil then
-    lines:close()
-    if lines.err then return nil, "log: " .. tostring(lines.err) end
-    return nil, "log: no header line"
-  end
-  if count > M.MAX_COLUMNS then
-    lines:close()
-    return nil, "log: header has " .. count .. " columns, more than " .. M.MAX_COLUMNS
-      .. " (line " .. line .. ")"
-  end
-  local column = {}
-  for i = 1, count do
-    local name = header[i]
-    if name == "" then
-      lines:close()
-      return nil, "log: header column " .. i .. " has no name (line " .. line .. ")"
-    end
-    if column[name] then
-      lines:close()
-      return nil, ("log: header names column '%s' twice (columns %d and %d, line %d)"):format(
-        name, column[name], i, line)
-    end
-    column[name] = i
-  end
-  for _, name in ipairs(required or {}) do
-    if not column[name] then
-      lines:close()
-      local hint = ""
-      if count == 1 then
-        local sep = header[1]:match("[;\t|]")
-        if sep then
-          hint = ": its fields are separated by '" .. (sep == "\t" and "\\t" or sep)
-            .. "', not commas"
-        end
-      end
-      return nil, "log: header has no column '" .. name .. "' (line " .. line .. ")" .. hint
-    end
-  end
-  self.header, self.column, self.header_line = header, column, line
-  self.width = count
-  return setmetatable(self, Csv)
-end
-
-function Csv:read()
-  local fields, line, count = self:record(self.width)
-  if fields == nil then return nil end
-  if fields == false then return false, line, count end
-  if count ~= self.width then
-    return false, line, ("%d fields, header has %d"):format(count, self.width)
-  end
-  return fields, line
-end
-
-function Csv:close()
-  self.lines:close()
+  local reader, err = csv_table.reader(source, required, M.MAX_RECORD, M.MAX_COLUMNS)
+  if not reader then return nil, "log: " .. err end
+  return reader
 end
 
 -- the fields of a row by column name: numbers, strings, nil for empty fields
@@ -608,12 +341,15 @@ function M.pose_writer(target)
   return self
 end
 
+-- write the pending lines (once the target has failed, drop them: memory stays bounded)
 function Writer:flush()
   local pending = self.pending
-  if #pending == 0 or self.err then return end
-  pending[#pending + 1] = ""
-  local ok, err = self.f:write(concat(pending, "\n"))
-  if not ok then self.err = tostring(err) end
+  if #pending == 0 then return end
+  if not self.err then
+    pending[#pending + 1] = ""
+    local ok, err = self.f:write(concat(pending, "\n"))
+    if not ok then self.err = tostring(err) end
+  end
   self.pending = {}
 end
 

@@ -1,0 +1,313 @@
+--- SVG plots of poses over frames, written in plain Lua (no I/O: the functions return text).
+--
+-- `poses` draws the figure of a replay: one panel each for the position `x`, `y`, `z` (left
+-- column) and for the rotation (right column), the frame number along every horizontal axis,
+-- one line per tag id (one colour per tag), one line style per source: the first source solid,
+-- the others dashed (for instance a ground truth or another solver's pose log). `figure` is the
+-- general layout underneath, for panels of any series.
+--
+-- The rotation is shown either as the quaternion components `qw, qx, qy, qz` of the pose
+-- (tag → camera, unit, as stored) or as roll, pitch and yaw in degrees, with the convention of
+-- `roll_pitch_yaw`.
+--
+-- A line is broken where a value is missing or not finite, and where a tag was not seen for
+-- more than one frame (more than 1.5 times the series' smallest frame step), so that gaps in
+-- the detections show as gaps; a run of a single point is drawn as a dot. Every panel is a
+-- `<g class="panel">` and every line a `<g class="series">` with `data-tag` and `data-source`
+-- attributes, so that a test (or a script) can count what a figure shows.
+--
+-- Lengths are in the unit of the tag size; the unit's name for the axis titles is an option
+-- (`"m"` by default). SVG coordinates are in CSS pixels.
+--
+-- Its parts: `tagpose.tools.plot.scale` (ticks, ranges), `tagpose.tools.plot.svg` (a panel,
+-- markers, the legend), `tagpose.tools.plot.figure` (the layout), `tagpose.tools.plot.tracker`
+-- (tags sharing an id), `tagpose.tools.plot.recorder` (series kept compact) and
+-- `tagpose.tools.plot.draw` (a recorder's figure). The constants below are read from this
+-- module when they are used, so that a caller may change them.
+-- @module tagpose.tools.plot
+
+local args = require("tagpose.args")
+local compat = require("tagpose.compat")
+local scale = require("tagpose.tools.plot.scale")
+local figure = require("tagpose.tools.plot.figure")
+local tracks = require("tagpose.tools.plot.tracker")
+local recorder_model = require("tagpose.tools.plot.recorder")
+local draw = require("tagpose.tools.plot.draw")
+
+local is_finite = compat.is_finite
+
+local M = {}
+
+--- Colours of the tags, in the order of their ids (Tableau 10); the list repeats after ten.
+M.COLOURS = { "#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2",
+  "#7f7f7f", "#bcbd22", "#17becf" }
+--- Stroke dash patterns of the sources, in order (`false`: solid); the list repeats.
+M.DASHES = { false, "7 4", "2 3", "10 3 2 3" }
+
+--- Marker shapes that tell apart the tags beyond the ten colours (`false`: none); the list
+-- repeats.
+M.MARKERS = { false, "circle", "square", "triangle", "diamond", "cross" }
+
+--- Most points a series of a `recorder` keeps exactly; beyond, it keeps the minimum and the
+-- maximum of each value over buckets of frames (at most this many buckets, their width
+-- doubling as the log goes on), which draws as the envelope a dense line fills at the
+-- figure's resolution: memory stays bounded and no outlier is dropped.
+M.MAX_POINTS = 1024
+
+--- Most series a `recorder` keeps (one per source and track); the points of further series are
+-- counted in its `skipped`, not drawn (a log whose every row carries a new tag id must not fill
+-- memory with series).
+M.MAX_SERIES = 256
+
+local function raise(n, fname, message)
+  args.raise(n, fname, message, 3)
+end
+
+--- Ticks of an axis at "nice" values: multiples of 1, 2 or 5 times a power of ten.
+-- There are always at least three, so that an axis can be read (the step is made smaller
+-- until three fit); when `hi` equals `lo` the range is first widened by 10 % of `|lo|` (or by
+-- 1 around 0).
+-- @tparam number lo the low end of the axis
+-- @tparam number hi the high end (`>= lo`)
+-- @tparam[opt=5] int count about how many ticks are wanted (at least 1)
+-- @treturn {number,...} the tick values in `[lo, hi]` (widened as above), ascending, at least
+--   three (a value within round-off of zero is exactly 0)
+-- @treturn number the step between them
+-- @treturn int the number of decimals that writes every tick exactly (for `%.Nf`)
+-- @raise `bad argument #n to 'ticks' (...)` when `lo` or `hi` is not finite or `hi < lo`
+-- @usage
+-- local ticks, step, decimals = plot.ticks(0, 0.7)  -- {0, 0.1, ..., 0.7}, 0.1, 1
+-- @function ticks
+M.ticks = scale.ticks
+
+--- Roll, pitch and yaw of a rotation given as a quaternion.
+-- The convention: intrinsic Z-Y-X angles (yaw about z, then pitch about the new y, then
+-- roll about the newest x) of the tag → camera rotation, so that
+-- `R = Rz(yaw) · Ry(pitch) · Rx(roll)`; equivalently, rotations about the fixed camera axes x,
+-- then y, then z. A tag seen face-on and upright (tag axes along the camera's) has all three
+-- at 0; pitch is in `[-π/2, π/2]`, roll and yaw in `[-π, π]`. At pitch `±π/2` (gimbal lock)
+-- roll is 0 and yaw takes the whole rotation about z. Mind the camera's axes (x right, y down,
+-- z forward): roll turns the tag about the horizontal image axis, pitch about the vertical one
+-- (what a ground robot calls a heading change) and yaw about the line of sight.
+-- @tparam number w
+-- @tparam number x
+-- @tparam number y
+-- @tparam number z the quaternion (any non-zero length; it is normalised)
+-- @treturn number roll, radians
+-- @treturn number pitch, radians
+-- @treturn number yaw, radians
+-- @usage
+-- local roll, pitch, yaw = plot.roll_pitch_yaw(pose.quaternion.w, pose.quaternion.x,
+--   pose.quaternion.y, pose.quaternion.z)
+-- @function roll_pitch_yaw
+M.roll_pitch_yaw = recorder_model.roll_pitch_yaw
+
+--- An SVG figure of panels in columns, with a title and a legend above them.
+-- All panels share the horizontal range (the union of their series' finite x values, with
+-- 1 % of room at either end); each panel's vertical range is its series' finite y values,
+-- padded by 5 % (or `range`).
+-- @tparam table fig the figure:
+--
+--   - `columns`: array of columns, each an array of panels from top to bottom; a panel is
+--     `{name =, title =, unit =, x_label =, range = {lo, hi} or nil, series = {...}}`, a series
+--     `{x = {...}, y = {...}, colour = "#rrggbb", dash = "7 4" or nil, width = px, tag =,
+--     source =, wrap = number or nil, marker = name or nil}` (`wrap`: break the line where y
+--     jumps by more, as an angle does at ±180°; `marker`: one of `MARKERS`, drawn every 40 px
+--     along the line and in place of the dot of a single point);
+--   - `title` (optional), `legend` (optional array of `{label =, colour =, dash =,
+--     marker =}`),
+--   - `width` (px, default 1000), `panel_height` (px, default 150).
+-- @treturn string the SVG document
+-- @treturn table what it shows: `{panels = n, series = n}`
+-- @raise `bad argument #1 to 'figure' (...)` when `fig` is not of that shape
+-- @function figure
+M.figure = figure.figure
+
+--- A tracker that keeps apart the tags sharing an id (lab tags are often all id 0): each
+-- detection of a frame joins the live track of its id whose last position is nearest (pairs
+-- taken nearest first, each track at most once a frame), if it is within the track's gate;
+-- the others start tracks. A track not seen for more than `keep` frames ends, and its slot
+-- number is given to the next new track of the id.
+-- @tparam[opt] table options `keep` (frames, default 1), `max_tracks` (per id, default 16:
+--   further detections get no track, slot `nil`)
+-- @treturn table a tracker with `assign(frame, id, points)`: `points` an array of
+--   `{x, y[, z][, gate = r]}` (a point or `nil` each); returns an array of slots (1, 2, ...)
+--   and an array of the tracks (tables the caller may keep its own fields in)
+-- @function tracker
+M.tracker = tracks.new
+
+--- A recorder of poses for a figure, fed row by row (memory bounded by `MAX_POINTS` per
+-- series, whatever the length of the log).
+-- Each series is one source's track of one tag id (`slot` tells apart the tags that share an
+-- id). The quaternion of each series is kept continuous: a pose whose quaternion points away
+-- from the series' previous one (`q · q_prev < 0`) is drawn as `-q`, the same rotation (the
+-- poses themselves keep `w >= 0`).
+-- @tparam[opt] table options `rotation` (`"quaternion"`, default, or `"rpy"`), `max_points`
+--   (default `MAX_POINTS`)
+-- @treturn table the recorder: `source(label[, dash])` → a source index; `add(source, tag,
+--   slot, frame, pose)` (a `nil` pose is a gap: a failed row); `dropped` counts the points
+--   that came out of frame order once a series was bucketed, `skipped` those of series past
+--   `MAX_SERIES` (neither is drawn)
+function M.recorder(options)
+  options = options or {}
+  local rotation = options.rotation or "quaternion"
+  if not recorder_model.ROTATION[rotation] then
+    raise(1, "recorder", "options.rotation: 'quaternion' or 'rpy' expected, got "
+      .. args.describe(rotation))
+  end
+  return recorder_model.new(rotation, options.max_points or M.MAX_POINTS, M)
+end
+
+-- check the options of draw or poses (fname), argument n; a misuse is blamed on the caller of
+-- draw or poses, one level above this helper's caller
+local function check_title(fname, n, options)
+  local function refuse(message) args.raise(n, fname, message, 4) end
+  if options.title ~= nil and type(options.title) ~= "string" then
+    refuse("options.title: string expected, got " .. args.describe(options.title))
+  end
+  for _, name in ipairs({ "width", "panel_height" }) do
+    local v = options[name]
+    if v ~= nil and not (is_finite(v) and v >= 100) then
+      refuse("options." .. name .. ": number >= 100 expected, got " .. args.describe(v))
+    end
+  end
+  local unit = options.length_unit
+  if unit ~= nil and type(unit) ~= "string" then
+    refuse("options.length_unit: string expected, got " .. args.describe(unit))
+  end
+end
+
+--- The SVG figure of what a `recorder` holds: position and rotation over frames, one line per
+-- source and track of a tag.
+-- Tracks are told apart by colour (ten, `COLOURS`), then by marker (`MARKERS`: the 11th to
+-- 20th track carry circles, and so on), sources by dash (`DASHES`: the first solid). The
+-- legend shows what is drawn: the tracks that have a finite point, and the sources (when
+-- there are several) that have one.
+-- @tparam table recorder a `recorder`
+-- @tparam[opt] table options `title`, `length_unit` (the unit of the tag size, for the
+--   position titles, default `"m"`), `width` (px, default 1000), `panel_height` (px, default
+--   150), `max_legend` (entries, default 60; the rest are summed up in one)
+-- @treturn string the SVG document
+-- @treturn table what it shows: `{panels = n, series = n, tags = {id, ...}, tracks = n}`
+--   (a series is one source's line of one track in one panel)
+-- @raise `bad argument #n to 'draw' (...)` when the options are not of that shape
+function M.draw(recorder, options)
+  if not recorder_model.is_recorder(recorder) then
+    raise(1, "draw", "a recorder expected, got " .. type(recorder))
+  end
+  if options ~= nil and type(options) ~= "table" then
+    raise(2, "draw", "options table expected, got " .. type(options))
+  end
+  options = options or {}
+  check_title("draw", 2, options)
+  return draw.draw(recorder, options, M)
+end
+
+local function check_sources(sources)
+  if type(sources) ~= "table" then return "array of sources expected, got " .. type(sources) end
+  for i = 1, #sources do
+    local s = sources[i]
+    if type(s) ~= "table" or type(s.entries) ~= "table" then
+      return "sources[" .. i .. "]: {label =, entries = {...}} expected"
+    end
+    for k = 1, #s.entries do
+      local e = s.entries[k]
+      if type(e) ~= "table" or (e.pose ~= nil and type(e.pose) ~= "table") then
+        return "sources[" .. i .. "].entries[" .. k .. "]: {frame =, tag =, pose =} expected"
+      end
+    end
+  end
+  return nil
+end
+
+-- the position of a pose as a tracker point, or nil
+local function position_point(pose)
+  local p = type(pose) == "table" and pose.position
+  if type(p) ~= "table" then return nil end
+  return { p.x, p.y, p.z }
+end
+
+--- Feed a recorder the entries of one source, keeping apart the tags that share an id in a
+-- frame (by the nearest position to each track's last one; see `tracker`).
+-- @tparam table recorder a `recorder`
+-- @tparam int source the source's index (`recorder:source(...)`)
+-- @tparam {table,...} entries `{frame =, tag =, pose =}` in log order
+function M.record_entries(recorder, source, entries)
+  local tracker = M.tracker()
+  local i, n = 1, #entries
+  while i <= n do
+    -- the entries of one frame
+    local frame = entries[i].frame
+    local j = i
+    while j + 1 <= n and entries[j + 1].frame == frame do j = j + 1 end
+    local by_tag, tags = {}, {}
+    for k = i, j do
+      local e = entries[k]
+      if e.tag ~= nil then
+        local list = by_tag[e.tag]
+        if not list then
+          list = {}
+          by_tag[e.tag] = list
+          tags[#tags + 1] = e.tag
+        end
+        list[#list + 1] = e
+      end
+    end
+    for _, tag in ipairs(tags) do
+      local list = by_tag[tag]
+      local points = {}
+      for k, e in ipairs(list) do points[k] = position_point(e.pose) or false end
+      local slots = is_finite(frame) and tracker:assign(frame, tag, points) or {}
+      for k, e in ipairs(list) do
+        recorder:add(source, tag, slots[k] or 1, frame, e.pose)
+      end
+    end
+    i = j + 1
+  end
+end
+
+--- The SVG figure of pose logs: position and rotation over frames, one line per tag id (and
+-- per track of an id that several tags share in a frame).
+-- @tparam {table,...} sources the logs to draw, each `{label = string, entries = {...}}` with
+--   entries `{frame =, tag =, pose =}` as `tagpose.tools.log.read_poses` returns them (or as a
+--   replay builds them from `tagpose.solve`'s results; a `nil` pose is a gap). The first source
+--   is drawn solid, the others dashed (`DASHES`); a source's `dash` field overrides its style.
+-- @tparam[opt] table options
+--
+--   - `rotation`: `"quaternion"` (default) or `"rpy"` (roll, pitch, yaw in degrees, see
+--     `roll_pitch_yaw`);
+--   - `length_unit`: the unit of the tag size, for the position titles (default `"m"`);
+--   - `title`, `width` (px, default 1000), `panel_height` (px, default 150).
+-- @treturn string the SVG document
+-- @treturn table what it shows: `{panels = n, series = n, tags = {id, ...}}` (a series is one
+--   source's line of one track in one panel)
+-- @raise `bad argument #n to 'poses' (...)` when the sources or options are not of that shape
+-- @usage
+-- local entries = log.read_poses("poses.csv")
+-- local truth = log.read_poses("truth.csv")
+-- local svg = plot.poses({ { label = "tagpose", entries = entries },
+--   { label = "truth", entries = truth } }, { title = "approach" })
+function M.poses(sources, options)
+  local problem = check_sources(sources)
+  if problem then raise(1, "poses", problem) end
+  if options ~= nil and type(options) ~= "table" then
+    raise(2, "poses", "options table expected, got " .. type(options))
+  end
+  options = options or {}
+  local rotation = options.rotation or "quaternion"
+  if not recorder_model.ROTATION[rotation] then
+    raise(2, "poses", "options.rotation: 'quaternion' or 'rpy' expected, got "
+      .. args.describe(rotation))
+  end
+  check_title("poses", 2, options)
+  local recorder = M.recorder({ rotation = rotation })
+  for _, src in ipairs(sources) do
+    local si = recorder:source(src.label, src.dash)
+    M.record_entries(recorder, si, src.entries)
+  end
+  local svg, shown = M.draw(recorder, options)
+  shown.tracks = nil
+  return svg, shown
+end
+
+return M

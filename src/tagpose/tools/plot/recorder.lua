@@ -1,0 +1,263 @@
+--- What a pose figure draws, kept compact as it comes (see `tagpose.tools.plot.recorder`,
+-- which this is): one series per source and track of a tag, exact up to `max_points` points,
+-- then the minimum and maximum of each value over buckets of frames (at most `max_points`
+-- buckets, their width doubling as the log goes on).
+--
+-- A series is `{source =, tag =, slot =, n =, x = {frame, ...}, names =, drawn =, last_q =}`
+-- with, while exact, `v[c]` the values of column c (`x, y, z`, then the rotation's), and once
+-- bucketed `origin`, `width`, `index[i]` (bucket numbers) and `mn[c]`, `mx[c]` (the extremes).
+-- Values that are missing are NaN.
+-- @module tagpose.tools.plot.recorder
+
+local compat = require("tagpose.compat")
+
+local floor, deg, asin, sqrt, huge = math.floor, math.deg, math.asin, math.sqrt, math.huge
+local atan2, is_finite = compat.atan2, compat.is_finite
+
+local M = {}
+
+--- The rotation panels of each kind: their names, titles, units and wraps.
+M.ROTATION = {
+  quaternion = {
+    { name = "qw", title = "qw" }, { name = "qx", title = "qx" },
+    { name = "qy", title = "qy" }, { name = "qz", title = "qz" },
+  },
+  rpy = {
+    { name = "roll", title = "roll", unit = "deg", wrap = 180 },
+    { name = "pitch", title = "pitch", unit = "deg", wrap = 180 },
+    { name = "yaw", title = "yaw", unit = "deg", wrap = 180 },
+  },
+}
+
+local ROTATION = M.ROTATION
+
+--- `tagpose.tools.plot.roll_pitch_yaw` (documented there).
+-- @tparam number w
+-- @tparam number x
+-- @tparam number y
+-- @tparam number z
+-- @treturn number roll
+-- @treturn number pitch
+-- @treturn number yaw
+function M.roll_pitch_yaw(w, x, y, z)
+  local n = sqrt(w * w + x * x + y * y + z * z)
+  w, x, y, z = w / n, x / n, y / n, z / n
+  local s = 2 * (w * y - z * x)
+  if s >= 1 - 1e-12 or s <= -1 + 1e-12 then
+    -- gimbal lock: R = Rz(yaw) Ry(±π/2); read yaw from the first two rows of the 2nd column
+    local r12 = 2 * (x * y - w * z)
+    local r22 = 1 - 2 * (x * x + z * z)
+    return 0, s > 0 and math.pi / 2 or -math.pi / 2, atan2(-r12, r22)
+  end
+  return atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y)), asin(s),
+    atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+end
+
+local Recorder = {}
+Recorder.__index = Recorder
+
+--- A recorder (its rotation checked by the caller).
+-- @tparam string rotation `"quaternion"` or `"rpy"`
+-- @tparam int max_points
+-- @tparam table settings where `MAX_SERIES` and `DASHES` are read when they are needed (the
+--   `tagpose.tools.plot` module)
+-- @treturn table the recorder
+function M.new(rotation, max_points, settings)
+  local names = { "x", "y", "z" }
+  for _, r in ipairs(ROTATION[rotation]) do names[#names + 1] = r.name end
+  return setmetatable({ rotation = rotation, names = names, sources = {}, series = {},
+    order = {}, max_points = max_points, dropped = 0, skipped = 0, settings = settings },
+    Recorder)
+end
+
+--- True for a recorder of `new`.
+-- @param v
+-- @treturn boolean
+function M.is_recorder(v)
+  return getmetatable(v) == Recorder
+end
+
+function Recorder:source(name, dash)
+  local n = #self.sources + 1
+  local dashes = self.settings.DASHES
+  if dash == nil then dash = dashes[(n - 1) % #dashes + 1] end
+  self.sources[n] = { label = tostring(name or n), dash = dash or nil }
+  return n
+end
+
+local function series_key(source, tag, slot)
+  return tostring(source) .. "\0" .. type(tag) .. ":" .. tostring(tag) .. "\0" .. tostring(slot)
+end
+
+-- merge bucket b into bucket a of series s (a, b indices), for every value
+local function merge_bucket(s, a, b)
+  for c = 1, #s.mn do
+    local mn, mx = s.mn[c], s.mx[c]
+    local u, v = mn[b], mx[b]
+    if u == u and (mn[a] ~= mn[a] or u < mn[a]) then mn[a] = u end
+    if v == v and (mx[a] ~= mx[a] or v > mx[a]) then mx[a] = v end
+  end
+end
+
+-- an exact series as buckets of one point each, of the width that halves max_points over
+-- its frames
+local function start_buckets(s)
+  local nv = #s.names
+  local lo, hi = huge, -huge
+  for i = 1, s.n do
+    local x = s.x[i]
+    if x < lo then lo = x end
+    if x > hi then hi = x end
+  end
+  s.origin = lo
+  local w = (hi - lo) / (s.max_points / 2)
+  if not (w > 0) then w = 1 end
+  s.mn, s.mx, s.index = {}, {}, {}
+  for c = 1, nv do s.mn[c], s.mx[c] = s.v[c], {} end
+  for c = 1, nv do
+    local src, mx = s.v[c], s.mx[c]
+    for i = 1, s.n do mx[i] = src[i] end
+  end
+  s.v = nil
+  return w
+end
+
+-- turn an exact series into buckets (w nil), or double their width (w the new width)
+local function rebucket(s, w)
+  local nv = #s.names
+  if not s.width then w = start_buckets(s) end
+  s.width = w
+  local index, x, n = s.index, s.x, 0
+  local last = nil
+  for i = 1, s.n do
+    local k = floor((x[i] - s.origin) / w)
+    if last ~= nil and k <= last then
+      if k < last then s.recorder.dropped = s.recorder.dropped + 1 end
+      merge_bucket(s, n, i)
+    else
+      n = n + 1
+      last = k
+      index[n] = k
+      if n ~= i then
+        x[n] = x[i]
+        for c = 1, nv do s.mn[c][n], s.mx[c][n] = s.mn[c][i], s.mx[c][i] end
+      end
+    end
+  end
+  for i = n + 1, s.n do
+    x[i], index[i] = nil, nil
+    for c = 1, nv do s.mn[c][i], s.mx[c][i] = nil, nil end
+  end
+  s.n = n
+end
+
+-- the series of (source, tag, slot), created if there is room (nil when there is not)
+function Recorder:series_of(source, tag, slot)
+  local key = series_key(source, tag, slot)
+  local s = self.series[key]
+  if s then return s end
+  if #self.order >= self.settings.MAX_SERIES then
+    self.skipped = self.skipped + 1
+    return nil
+  end
+  s = { source = source, tag = tag, slot = slot, n = 0, x = {}, v = {}, names = self.names,
+    max_points = self.max_points, recorder = self, drawn = false }
+  for c = 1, #self.names do s.v[c] = {} end
+  self.series[key] = s
+  self.order[#self.order + 1] = s
+  return s
+end
+
+-- the values of a pose for series s into vals: position, then the rotation, its quaternion
+-- continuous along the series (NaN for what is missing or not finite)
+function Recorder:values(s, pose, vals)
+  local nv = #self.names
+  for c = 1, nv do vals[c] = 0 / 0 end
+  if type(pose) == "table" then
+    local p, q = pose.position, pose.quaternion
+    if type(p) == "table" then vals[1], vals[2], vals[3] = p.x, p.y, p.z end
+    if type(q) == "table" and is_finite(q.w) and is_finite(q.x) and is_finite(q.y)
+      and is_finite(q.z) and q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z > 0 then
+      local w, x, y, z = q.w, q.x, q.y, q.z
+      local lq = s.last_q
+      if lq and lq[1] * w + lq[2] * x + lq[3] * y + lq[4] * z < 0 then
+        w, x, y, z = -w, -x, -y, -z
+      end
+      s.last_q = lq or {}
+      s.last_q[1], s.last_q[2], s.last_q[3], s.last_q[4] = w, x, y, z
+      if self.rotation == "quaternion" then
+        vals[4], vals[5], vals[6], vals[7] = w, x, y, z
+      else
+        local roll, pitch, yaw = M.roll_pitch_yaw(w, x, y, z)
+        vals[4], vals[5], vals[6] = deg(roll), deg(pitch), deg(yaw)
+      end
+    end
+  end
+  for c = 1, nv do
+    local v = vals[c]
+    if type(v) ~= "number" or not is_finite(v) then vals[c] = 0 / 0 else s.drawn = true end
+  end
+end
+
+-- add a frame's values to a bucketed series
+local function add_bucketed(recorder, s, frame, vals)
+  local nv = #s.names
+  local k = floor((frame - s.origin) / s.width)
+  local n = s.n
+  local last = s.index[n]
+  if k < last then
+    recorder.dropped = recorder.dropped + 1
+    return
+  end
+  if k > last then
+    n = n + 1
+    s.n = n
+    s.index[n], s.x[n] = k, frame
+    for c = 1, nv do s.mn[c][n], s.mx[c][n] = 0 / 0, 0 / 0 end
+  end
+  for c = 1, nv do
+    local v, mn, mx = vals[c], s.mn[c], s.mx[c]
+    if v == v then
+      if mn[n] ~= mn[n] or v < mn[n] then mn[n] = v end
+      if mx[n] ~= mx[n] or v > mx[n] then mx[n] = v end
+    end
+  end
+  if n > s.max_points then rebucket(s, 2 * s.width) end
+end
+
+function Recorder:add(source, tag, slot, frame, pose)
+  if not is_finite(frame) then return end
+  local s = self:series_of(source, tag, slot)
+  if not s then return end
+  local vals = self.scratch or {}
+  self.scratch = vals
+  self:values(s, pose, vals)
+  if s.width then return add_bucketed(self, s, frame, vals) end
+  local n = s.n + 1
+  s.n = n
+  s.x[n] = frame
+  for c = 1, #self.names do s.v[c][n] = vals[c] end
+  if n > s.max_points then rebucket(s) end
+end
+
+--- The x and y arrays a panel draws of a series, value c (a bucket as its minimum and
+-- maximum at its centre, in alternating order so that the line fills the envelope).
+-- @tparam table s
+-- @tparam int c
+-- @treturn {number,...} x
+-- @treturn {number,...} y
+function M.series_xy(s, c)
+  if not s.width then return s.x, s.v[c] end
+  local xs, ys = {}, {}
+  local mn, mx = s.mn[c], s.mx[c]
+  for i = 1, s.n do
+    local xc = s.origin + (s.index[i] + 0.5) * s.width
+    local a, b = mn[i], mx[i]
+    if i % 2 == 0 then a, b = b, a end
+    xs[2 * i - 1], ys[2 * i - 1] = xc, a
+    xs[2 * i], ys[2 * i] = xc, b
+  end
+  return xs, ys
+end
+
+return M

@@ -1,0 +1,139 @@
+--- tagpose-replay's command line: its options, its paths and its ways out.
+--
+-- The ways out of the command are raised as `EXIT` tables `{status =, text =}` (the text for
+-- standard error) and caught by `tagpose.tools.replay.main`: `usage` (status 2, with the
+-- usage), `fail` (status 1: a file cannot be read or written), and `--help` (status 0).
+-- @module tagpose.tools.replay.command
+
+local compat = require("tagpose.compat")
+
+local huge = math.huge
+
+local M = {}
+
+--- The usage line.
+M.USAGE = "usage: tagpose-replay LOG.csv [--camera FILE] [--tag-size S[UNIT]]\n"
+  .. "  [--method refined|seed] [--track] [--max-gap N] [--out POSES.csv|-] [--svg PLOT.svg]\n"
+  .. "  [--rpy] [--unit NAME] [--title TEXT] [--compare OTHER.csv ...]\n"
+
+local USAGE = M.USAGE
+
+local UNITS = { m = true, cm = true, mm = true, ["in"] = true, ft = true }
+
+--- The metatable of the ways out.
+M.EXIT = {}
+
+local EXIT = M.EXIT
+
+--- Leave with status 2: a usage error (`msg`, then the usage).
+-- @tparam[opt] string msg
+function M.usage(msg)
+  error(setmetatable({ status = 2, text = (msg and "replay: " .. msg .. "\n" or "") .. USAGE },
+    EXIT), 0)
+end
+
+--- Leave with status 1: a file cannot be read or written.
+-- @tparam string msg
+function M.fail(msg)
+  error(setmetatable({ status = 1, text = "replay: " .. msg .. "\n" }, EXIT), 0)
+end
+
+local usage = M.usage
+
+-- --tag-size S[UNIT] into opt
+local function tag_size(opt, v)
+  local num, unit = v:match("^(.-)%s*(%a*)$")
+  opt.tag_size = compat.decimal(num)
+  if not (opt.tag_size and opt.tag_size > 0 and opt.tag_size < huge)
+    or (unit ~= "" and not UNITS[unit]) then
+    usage("--tag-size: positive number (with an optional unit m, cm, mm, in, ft) expected,"
+      .. " got " .. v)
+  end
+  opt.tag_size_unit = unit ~= "" and unit or nil
+end
+
+-- the options that take one value, and the field each sets
+local VALUE = { ["--camera"] = "camera", ["--out"] = "out", ["--svg"] = "svg",
+  ["--unit"] = "unit", ["--title"] = "title" }
+
+--- The options of the command line.
+-- @tparam {string,...} arg the arguments
+-- @treturn table `{log =, camera =, tag_size =, tag_size_unit =, method =, max_gap =, out =,
+--   svg =, rpy =, unit =, title =, compare = {path, ...}}` (`max_gap` set by `--track` too)
+-- @raise an `EXIT` for `--help` and for a usage error
+function M.parse(arg)
+  local opt = { compare = {}, max_gap = nil }
+  local i, n = 1, #arg
+  local function value(name)
+    i = i + 1
+    local v = arg[i]
+    if v == nil or (v:sub(1, 2) == "--" and #v > 2) then usage(name .. " needs a value") end
+    return v
+  end
+  while i <= n do
+    local a = arg[i]
+    if a == "--help" or a == "-h" then
+      io.stdout:write(USAGE)
+      error(setmetatable({ status = 0, text = "" }, EXIT), 0)
+    elseif VALUE[a] then
+      opt[VALUE[a]] = value(a)
+    elseif a == "--tag-size" then
+      tag_size(opt, value(a))
+    elseif a == "--method" then
+      opt.method = value(a)
+      if opt.method ~= "refined" and opt.method ~= "seed" then
+        usage("--method: refined or seed expected, got " .. opt.method)
+      end
+    elseif a == "--track" then
+      opt.max_gap = opt.max_gap or 1
+    elseif a == "--max-gap" then
+      local v = value(a)
+      opt.max_gap = tonumber(v)
+      if not (opt.max_gap and opt.max_gap >= 1 and opt.max_gap < huge) then
+        usage("--max-gap: number >= 1 expected, got " .. v)
+      end
+    elseif a == "--rpy" then
+      opt.rpy = true
+    elseif a == "--compare" then
+      opt.compare[#opt.compare + 1] = value(a)
+      while arg[i + 1] and arg[i + 1]:sub(1, 2) ~= "--" do
+        i = i + 1
+        opt.compare[#opt.compare + 1] = arg[i]
+      end
+    elseif a:sub(1, 2) == "--" then
+      usage("unknown option " .. a)
+    elseif not opt.log then
+      opt.log = a
+    else
+      usage("one corner log expected, got " .. opt.log .. " and " .. a)
+    end
+    i = i + 1
+  end
+  if not opt.log then usage() end
+  return opt
+end
+
+--- True when a file can be opened for reading.
+-- @tparam string path
+-- @treturn boolean
+function M.exists(path)
+  local f = io.open(path, "r")
+  if f then f:close() end
+  return f ~= nil
+end
+
+--- The last component of a path.
+-- @tparam string path
+-- @treturn string
+function M.basename(path)
+  return (path:match("([^/]+)$") or path)
+end
+
+--- The last two components of a path: what tells logs named corners.csv apart.
+-- @tparam string path
+-- @treturn string
+function M.short_name(path)
+  return path:match("([^/]+/[^/]+)$") or M.basename(path)
+end
+
+return M

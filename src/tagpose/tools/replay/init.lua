@@ -1,0 +1,151 @@
+--- tagpose-replay: replay a corner log: solve every detection the robot's tag detector logged,
+-- write the poses, summarise, and draw the curves.
+--
+--   tagpose-replay LOG.csv [--camera FILE] [--tag-size S[UNIT]]
+--     [--method refined|seed] [--track] [--max-gap N] [--out POSES.csv|-] [--svg PLOT.svg]
+--     [--rpy] [--unit NAME] [--title TEXT] [--compare OTHER.csv ...]
+--
+-- LOG.csv      a corner log (header frame,tag,u1,v1,u2,v2,u3,v3,u4,v4; further columns ignored;
+--              blank lines and lines starting with # skipped; see tagpose.tools.log)
+-- --camera     a calibration file (tagpose.calibration): a Lua camera file (read as data),
+--              ROS camera_calibration or CameraInfo YAML, or OpenCV FileStorage YAML; default:
+--              camera.lua beside LOG.csv
+-- --tag-size   the side of the tag's black square, optionally with its unit (0.024, 24mm);
+--              default: the camera file's tag_size (a number, or {[id] = size, default =
+--              size}). Poses come out in its unit; the plot's axes name it (--unit overrides)
+-- --method     refined (default) or seed (the report's method exactly)
+-- --track      pass each track's pose of the previous frame as the prior of the next;
+--              --max-gap N also accepts a pose up to N frames old (and implies --track)
+-- --out        write the pose log (frame,tag,x,y,z,qw,qx,qy,qz,error,iterations): one row per
+--              readable input row, in input order; a row that failed keeps its frame and tag
+--              with empty pose fields. "-" writes it to standard output (the summary then goes
+--              to standard error)
+-- --svg        draw x, y, z and the quaternion (or with --rpy roll, pitch, yaw in degrees) over
+--              frames, one line per track; every --compare log is drawn dashed over it
+-- --compare    other pose logs (or truth files frame,tag,x,y,z,qw,qx,qy,qz) to draw and to
+--              measure against, matched by frame and tag; several may follow one --compare
+--
+-- The log is read, solved and written row by row: memory holds the rows of one frame, the
+-- live tracks and, for the plot, at most `plot.MAX_POINTS` points per track. Rows that share a
+-- (frame, tag) key (lab tags are often all id 0) are kept apart as tracks, by image position
+-- (each detection joins the track of its id whose last centre is nearest, within twice that
+-- detection's diagonal plus 10 px); a track's pose is the prior of its own next detection only.
+-- A malformed row is reported with its line number and skipped. Exit status: 0 when the log
+-- was replayed (whatever its rows gave), 1 when a file cannot be read or written, 2 on a usage
+-- error.
+--
+-- Its parts: `tagpose.tools.replay.command` (the command line and its exits),
+-- `tagpose.tools.replay.frames` (rows solved, tracked, written and counted a frame at a time),
+-- `tagpose.tools.replay.compare` (the logs compared with), `tagpose.tools.replay.stats`
+-- (bounded counts) and `tagpose.tools.replay.summary` (what it says, and the figure).
+-- @module tagpose.tools.replay
+
+local tagpose = require("tagpose")
+local calibration = require("tagpose.calibration")
+local log = require("tagpose.tools.log")
+local plot = require("tagpose.tools.plot")
+local command = require("tagpose.tools.replay.command")
+local frames = require("tagpose.tools.replay.frames")
+local compare = require("tagpose.tools.replay.compare")
+local summary = require("tagpose.tools.replay.summary")
+
+local usage, fail = command.usage, command.fail
+
+local M = {}
+
+-- the camera file (--camera, or camera.lua beside the log), what it says, the tag sizes and
+-- the length unit
+local function load_camera(opt)
+  local camera_path = opt.camera
+  if not camera_path then
+    camera_path = (opt.log:match("^(.*)/[^/]*$") or ".") .. "/camera.lua"
+    if not command.exists(camera_path) then
+      usage("no camera file: " .. camera_path .. " does not exist; give --camera FILE")
+    end
+  end
+  local camera, info = calibration.read(camera_path)
+  if not camera then fail(info) end
+  local problem = tagpose.camera.check(camera)
+  if problem then fail(camera_path .. ": " .. problem) end
+  local sizes = opt.tag_size or info.tag_size
+  if sizes == nil then
+    usage(camera_path .. " has no tag_size; give --tag-size S")
+  end
+  local unit = opt.unit or opt.tag_size_unit or (opt.tag_size and "tag-size units")
+    or info.unit or "m"
+  return camera, { path = camera_path, info = info, unit = unit }, sizes
+end
+
+-- the corner log, the pose log, the figure's recorder, the logs to compare with
+local function open_files(opt)
+  local reader, rerr = log.corner_reader(opt.log)
+  if not reader then fail(rerr:find(opt.log, 1, true) and rerr or opt.log .. ": " .. rerr) end
+  local out = { compares = {} }
+  if opt.out then
+    local werr
+    out.writer, werr = log.pose_writer(opt.out == "-" and io.stdout or opt.out)
+    if not out.writer then fail(werr) end
+  end
+  if opt.svg then
+    out.recorder = plot.recorder({ rotation = opt.rpy and "rpy" or "quaternion" })
+    out.main_source = out.recorder:source("tagpose " .. (opt.method or "refined")
+      .. (opt.max_gap and " tracked" or ""))
+  end
+  for _, path in ipairs(opt.compare) do
+    local c, cerr = compare.open(path, out.recorder)
+    if not c then fail(cerr) end
+    out.compares[#out.compares + 1] = c
+  end
+  return reader, out
+end
+
+local function run(arg)
+  local opt = command.parse(arg)
+
+  -- where the summary goes: stdout, unless the pose log does
+  local out = opt.out == "-" and io.stderr or io.stdout
+  local function say(fmt, ...)
+    out:write(select("#", ...) > 0 and fmt:format(...) or fmt, "\n")
+  end
+
+  local camera, source, sizes = load_camera(opt)
+  local reader, files = open_files(opt)
+  local replay = frames.new(opt, camera, sizes, files)
+  frames.read(replay, reader)
+  for _, c in ipairs(files.compares) do c:finish() end
+
+  -- the pose log first, so that a summary never claims a file that was not written
+  local written = nil
+  if files.writer then
+    local n, werr = files.writer:close()
+    if not n then fail(werr) end
+    written = n
+  end
+
+  summary.head(say, replay, source)
+  summary.rows(say, replay)
+  summary.medians(say, replay)
+  summary.comparisons(say, replay, source.unit)
+  if written then
+    say("wrote %s (%d rows)", opt.out == "-" and "the pose log to standard output" or opt.out,
+      written)
+  end
+  if files.recorder then summary.figure(say, replay, source.unit) end
+  return 0
+end
+
+--- Run the command on its arguments (`arg` of the script).
+-- @tparam {string,...} argv the command-line arguments
+-- @treturn int the exit status: 0 replayed, 1 a file could not be read or written, 2 a usage
+--   error
+function M.main(argv)
+  local ok, status = pcall(run, argv)
+  if ok then return status end
+  if getmetatable(status) == command.EXIT then
+    io.stderr:write(status.text)
+    return status.status
+  end
+  error(status, 0)
+end
+
+return M
