@@ -872,7 +872,9 @@ describe("tagpose.block", function()
     it("refuses a sigma that is not a positive number", function()
       local _, _, tags = random_block(geometry.rng(64), 1)
       assert.equal("bad argument #5 to 'solve' (options.sigma: positive number expected, got "
-        .. "number 0)", assertions.raised(function() solve(tags, { sigma = 0 }) end,
+        .. "number 0)", assertions.raised(function()
+          tagpose.block.solve(detections_of(tags), camera, TAG, BLOCK, { sigma = 0 })
+        end,
         "block_spec.lua"))
     end)
   end)

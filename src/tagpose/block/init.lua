@@ -418,11 +418,11 @@ end
 --   centre and a small rotation vector, both in the camera frame, as for a tag
 --   (`tagpose.block.uncertainty`); `confidence` the probability that the block's orientation
 --   is the true one of the two a one-face block has (1 with two or more faces; below 0.5 when
---   the better-fitting one is the less likely); the array's field `skipped` lists the detections not used,
---   `{index = i, reason = string}`, `next_id` the id a new block would take, and `noise`
---   the corner noise evidence `{sse =, dof =}` (px², degrees of freedom) carried to the next
---   frame, `up` (`{x =, y =, z =}`) and `floor` the up and floor used (given or found with
---   `"auto"`; nil when none)
+--   the better-fitting one is the less likely); the array's field `skipped` lists the
+--   detections not used, `{index = i, reason = string}`, `next_id` the id a new block would
+--   take, and `noise` the corner noise evidence `{sse =, dof =}` (px², degrees of freedom)
+--   carried to the next frame, `up` (`{x =, y =, z =}`) and `floor` the up and floor used
+--   (given or found with `"auto"`; nil when none)
 -- @return nil, string when no detection gives a tag pose (the message says why)
 -- @raise `bad argument #n to 'solve' (...)` when an argument has the wrong type or range
 --   (`detections` not a table, the camera, the sizes, the options; a malformed detection
