@@ -39,6 +39,7 @@ build = {
     ["tagpose.solvequad"] = "src/tagpose/solvequad.lua",
     ["tagpose.square"] = "src/tagpose/square.lua",
     ["tagpose.track"] = "src/tagpose/track.lua",
+    ["tagpose.tracker"] = "src/tagpose/tracker.lua",
   },
 }
 test = {

@@ -20,7 +20,7 @@ local pose = require("tagpose.pose")
 local ippe = require("tagpose.ippe")
 
 local is_finite, is_positive, describe = compat.is_finite, args.is_positive, args.describe
-local sqrt, max, huge = math.sqrt, math.max, math.huge
+local sqrt, huge = math.sqrt, math.huge
 local to_quaternion = rotation.to_quaternion
 
 local M = {
@@ -41,6 +41,8 @@ local q = {} -- the two quadratics' coefficients
 local depth = {} -- the proximate solution's corner depths
 local r1, r2 = {}, {} -- rotations of the two candidates
 local qa, qb = {}, {} -- their quaternions {w, x, y, z}
+local ta, tb = {}, {} -- and positions {x, y, z}
+local frame = { q1 = qa, t1 = ta } -- the frame as the tracking filter reads it
 local state = {} -- tracking state of this frame
 local prior_state = {} -- tracking state made from a prior without one
 local spare = setmetatable({}, { __mode = "k" }) -- into -> an alternative table to reuse
@@ -70,23 +72,25 @@ local function pose_quaternion(p, out)
   return nil
 end
 
+-- The position {x, y, z} of a pose table, or nil.
+local function pose_position(p, out)
+  local pt = type(p) == "table" and p.position
+  if type(pt) == "table" and is_finite(pt.x) and is_finite(pt.y) and is_finite(pt.z) and pt.z > 0
+  then
+    out[1], out[2], out[3] = pt.x, pt.y, pt.z
+    return out
+  end
+  return nil
+end
+
 -- The tracking state a prior carries, or one made from its pose (and alternative's).
 local function read_prior(prior)
   local t = prior.track
-  if type(t) == "table" then
-    local ok = true
-    for i = 1, 10 do
-      if not is_finite(t[i]) then ok = false end
-    end
-    if ok and t[10] > 0 then return t end
-  end
+  if track.is_state(t) then return t end
   if not pose_quaternion(prior, qa) then return nil end
-  local alt = pose_quaternion(prior.alternative, qb) or qa
-  for i = 1, 4 do
-    prior_state[i], prior_state[4 + i] = qa[i], alt[i]
-  end
-  prior_state[9], prior_state[10] = 0, nil -- the noise is taken from this frame
-  return prior_state
+  local alt = pose_quaternion(prior.alternative, qb)
+  return track.from_pose(prior_state, qa, pose_position(prior, ta), alt,
+    alt and pose_position(prior.alternative, tb))
 end
 
 -- Read the options; or nil and a description of the misuse.
@@ -113,6 +117,11 @@ local function read_options(options)
   elseif not args.is_count(max_it) then
     return nil, "options.max_iterations: positive integer expected, got " .. describe(max_it)
   end
+  local time = options.time
+  if time ~= nil and not is_finite(time) then
+    return nil, "options.time: finite number expected, got "
+      .. (time ~= time and "NaN" or describe(time))
+  end
   local prior, into = options.prior, options.into
   if prior ~= nil then
     if type(prior) ~= "table" then
@@ -126,7 +135,7 @@ local function read_options(options)
   if into ~= nil and type(into) ~= "table" then
     return nil, "options.into: table expected, got " .. type(into)
   end
-  return method, tol, max_it, prior, into
+  return method, tol, max_it, prior, into, time
 end
 
 local function arg_error(n, message)
@@ -190,6 +199,17 @@ local function minima(camera, half, tx, ty, tz)
   return tx, ty, tz, c1, k1, ux, uy, uz, c2, k2
 end
 
+-- The tag's mean side in pixels (the corners in px).
+local function side()
+  local s = 0
+  for i = 1, 4 do
+    local j = i % 4 + 1
+    local du, dv = px[2 * j - 1] - px[2 * i - 1], px[2 * j] - px[2 * i]
+    s = s + sqrt(du * du + dv * dv)
+  end
+  return 0.25 * s
+end
+
 -- The result of the refined method from the two minima (the first in r1, the second in r2;
 -- a sum of squares math.huge where that start led nowhere): the better by error, or the
 -- tracker's choice, as the pose, the other as its alternative.
@@ -214,23 +234,23 @@ local function choose(tx, ty, tz, c1, k1, ux, uy, uz, c2, k2, iterations, prior,
     local dp, dm = dw * dw + dx * dx + dy * dy + dz * dz, ow * ow + ox * ox + oy * oy + oz * oz
     has2 = (dp < dm and dp or dm) > 2.5e-13
   end
-  -- which candidate is the pose: the smaller error, or the tracker's choice
+  -- which candidate is the pose: the tracking filter's choice, which starts from the smaller
+  -- error (the filter's frame: the candidates by error, their positions, the tag's size)
   local first = c2 < c1 and 2 or 1
   local out_state = into and type(into.track) == "table" and into.track or state
   if first == 1 then
     qa[1], qa[2], qa[3], qa[4], qb[1], qb[2], qb[3], qb[4] = w1, x1, y1, z1, w2, x2, y2, z2
+    ta[1], ta[2], ta[3], tb[1], tb[2], tb[3] = tx, ty, tz, ux, uy, uz
+    frame.sse1, frame.sse2 = c1, c2
   else
     qa[1], qa[2], qa[3], qa[4], qb[1], qb[2], qb[3], qb[4] = w2, x2, y2, z2, w1, x1, y1, z1
+    ta[1], ta[2], ta[3], tb[1], tb[2], tb[3] = ux, uy, uz, tx, ty, tz
+    frame.sse1, frame.sse2 = c2, c1
   end
-  local sse_a, sse_b = first == 1 and c1 or c2, first == 1 and c2 or c1
-  if prior then
-    if prior[10] == nil then prior[10] = max(0.5 * sse_a, track.NOISE_FLOOR) end
-    if track.choose(prior, qa, sse_a, has2 and qb or nil, sse_b, out_state) == 2 then
-      first = 3 - first
-    end
-  else
-    track.start(out_state, qa, sse_a, has2 and qb or nil, sse_b)
-  end
+  frame.q2, frame.t2, frame.size = has2 and qb or nil, tb, side()
+  local pick, p = track.choose(prior, frame, out_state)
+  if pick == 2 then first = 3 - first end
+  local confidence = has2 and track.confidence(p) or 1
 
   local ra, rb = r1, r2
   local ax, ay, az, bx, by, bz = tx, ty, tz, ux, uy, uz
@@ -252,12 +272,17 @@ local function choose(tx, ty, tz, c1, k1, ux, uy, uz, c2, k2, iterations, prior,
   local result = pose.result(ra, ax, ay, az, ea, iterations, ka + kb, into, w1, x1, y1, z1)
   if into and result.alternative and not alt then spare[into] = result.alternative end
   result.alternative = alt
+  result.confidence = confidence
+  if alt then alt.confidence = 1 - confidence end
   local st = result.track
   if type(st) ~= "table" then
-    result.track = { out_state[1], out_state[2], out_state[3], out_state[4], out_state[5],
-      out_state[6], out_state[7], out_state[8], out_state[9], out_state[10] }
-  elseif st ~= out_state then
-    for i = 1, 10 do st[i] = out_state[i] end
+    st = {}
+    result.track = st
+  end
+  if st ~= out_state then
+    local n = #out_state
+    for i = 1, n do st[i] = out_state[i] end
+    for i = n + 1, #st do st[i] = nil end
   end
   return result
 end
@@ -329,8 +354,9 @@ function M.solve(corners, camera, tag_size, options)
   if not is_positive(tag_size) then
     arg_error(3, "positive number expected for tag_size, got " .. describe(tag_size))
   end
-  local method, tol, max_it, prior, into = read_options(options)
+  local method, tol, max_it, prior, into, time = read_options(options)
   if not method then arg_error(4, tol) end
+  frame.time = time
   if bad ~= true then return nil, "tagpose: corner " .. bad .. " is not finite" end
   local ok, why = prepare(camera)
   if not ok then return nil, why end
@@ -349,5 +375,8 @@ end
 
 --- Blocks: cubes carrying a tag on each face (`tagpose.block`; it uses `solve` above).
 M.block = require("tagpose.block")
+
+--- Many tags tracked frame by frame (`tagpose.tracker`; it uses `solve` above).
+M.tracker = require("tagpose.tracker")
 
 return M
