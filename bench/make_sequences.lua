@@ -31,7 +31,7 @@ local G = require("support.geometry")
 local rotation = require("tagpose.rotation")
 local compat = require("tagpose.compat")
 
-local sin, cos, pi, rad, abs, sqrt, floor = math.sin, math.cos, math.pi, math.rad, math.abs,
+local sin, cos, pi, rad, sqrt, floor = math.sin, math.cos, math.pi, math.rad,
   math.sqrt, math.floor
 local atan2 = compat.atan2
 

@@ -187,14 +187,11 @@ local function drop(self, t)
     end
     if #list == 0 then self.by_id[t.id] = nil end
   end
+  -- swap the last live track into its slot
   local all = self.tracks
-  for k = #all, 1, -1 do
-    if all[k] == t then
-      all[k] = all[#all]
-      all[#all] = nil
-      break
-    end
-  end
+  local last = all[#all]
+  all[t.slot], last.slot = last, t.slot
+  all[#all] = nil
 end
 
 -- integration: the pose of one detection through the public solve (lazily required: the
@@ -341,6 +338,7 @@ function Tracker:update(detections, time)
           end
           list[#list + 1] = t
           all[#all + 1] = t
+          t.slot = #all
           result.new = true
         else
           local dt = time - t.time
