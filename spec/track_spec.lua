@@ -59,6 +59,8 @@ local function crossing(seed, times, skip)
     local px = noisy(rng, geometry.project(camera, r, t, SIZE), 0.5)
     if not (skip and skip(k)) then
       local pose = assert(tagpose.solve(px, camera, SIZE, { prior = prior, time = times(k) }))
+      -- every frame's state is one the next frame takes (none of its weights lost)
+      assert(track.is_state(pose.track), "a state at frame " .. k)
       if tilt < 0 then
         if angle_to(r, pose) > 30 then tracked = tracked + 1 end
         if angle_to(r, assert(tagpose.solve(px, camera, SIZE))) > 30 then alone = alone + 1 end
