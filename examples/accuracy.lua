@@ -187,17 +187,17 @@ local function score(dir)
       iters_n = iters_n + 1
       est[i] = { r = r, t = { p.x, p.y, p.z }, rt = rt, tt = { tr.x, tr.y, tr.z }, flip = flip,
         key = tr.track or row.tag }
-      local alt, c = pose.alternative, confidences[i]
-      if alt and c then
+      local alt, conf = pose.alternative, confidences[i]
+      if alt and conf then
         local ra = rotation.from_nested(alt.rotation)
         if deg(rotation.angle(r, ra)) > 10 then
           -- the returned pose is on the true branch when it is the nearer to the truth
           local right = rerr <= deg(rotation.angle(rt, ra))
           amb = amb + 1
-          local b = bins[c >= 1 and 10 or floor(c * 10) + 1]
-          b.n, b.conf = b.n + 1, b.conf + c
+          local b = bins[conf >= 1 and 10 or floor(conf * 10) + 1]
+          b.n, b.conf = b.n + 1, b.conf + conf
           if right then b.right = b.right + 1 end
-          if c >= 0.95 then
+          if conf >= 0.95 then
             sure = sure + 1
             if not right then sure_wrong = sure_wrong + 1 end
           end

@@ -35,7 +35,8 @@
 -- `κ(x)·(SSE₂ − SSE₁)/(2σ²)`, where the weight `κ` rises from 0 at `x = EVIDENCE_FROM` to
 -- `EVIDENCE_MAX` at `EVIDENCE_TO` (near face-on the error difference says nothing about the
 -- branch). σ² is `frame.sigma2` when given, else estimated online from the best candidate's
--- SSE (`SSE/2` for its two residual degrees of freedom, weight `NOISE_MEMORY` per frame).
+-- SSE (`SSE/2` for its two residual degrees of freedom, weight `NOISE_MEMORY` per frame), and
+-- the evidence then takes the estimate's own uncertainty into account (`M.evidence`).
 --
 -- **The confidence** returned is the filter's posterior probability of the chosen candidate,
 -- calibrated by an increasing map of its log-odds (`CONFIDENCE`), fitted on the synthetic
@@ -45,9 +46,9 @@
 --
 -- The state is a flat array of numbers (`pose.track`): `STATE_TAG`, the number of
 -- hypotheses `n`, σ² (0 while unknown), the time of its frame, the posterior probability of
--- that frame's first candidate, the two smoothing numbers `choose` returns (below), then per
--- hypothesis nine numbers: `τx, τy`, their rates,
--- the position variance, the position-rate covariance, the rate variance (per axis), the
+-- that frame's first candidate, the two smoothing numbers `choose` returns (below), the
+-- degrees of freedom of the noise estimate, then per hypothesis nine numbers: `τx, τy`, their
+-- rates, the position variance, the position-rate covariance, the rate variance (per axis), the
 -- log-weight, and the candidate it chose (1 or 2, in that frame's order).
 -- @module tagpose.track
 
@@ -60,7 +61,7 @@ M.STATE_TAG = 20240601
 --- Numbers per hypothesis in the state.
 M.STRIDE = 9
 --- Header numbers before the hypotheses.
-M.HEADER = 7
+M.HEADER = 8
 --- Nominal time between frames (s), when no time is given.
 M.FRAME = 1 / 30
 --- Most hypotheses kept.
@@ -71,6 +72,10 @@ M.PROCESS = 0.03
 M.RATE = 0.25
 --- Weight of a new path starting at a candidate, relative to the hypotheses' total.
 M.BIRTH = 3e-4
+--- Places kept for the best hypotheses of each candidate, however unlikely (so that the
+-- path of the branch not chosen is never lost, and a track started on the wrong branch
+-- leaves it as soon as the frames say so).
+M.RESERVE = 2
 --- Children closer than this many standard deviations (and choosing the same candidate) are
 -- merged.
 M.MERGE = 0.5
@@ -88,6 +93,8 @@ M.EVIDENCE_MAX = 0.9
 M.NOISE_MEMORY = 0.1
 --- Floor of the noise variance estimate (px²).
 M.NOISE_FLOOR = 1e-4
+--- Most degrees of freedom the running noise estimate is credited with (two per frame).
+M.NOISE_DOF = 20
 --- The calibration of the confidence: pairs (posterior log-odds, confidence log-odds), a
 -- piecewise-linear increasing map (slope `CONFIDENCE_TAIL` beyond the last pair), fitted to the
 -- reliability of the posterior on synthetic sequences (see the module's header).
@@ -143,12 +150,17 @@ local function measurement(m, size, s2)
 end
 
 --- The default evidence of one frame for its first candidate against its second.
+-- With the noise variance known, `κ(x)·(sse2 − sse1)/(2·s2)`; estimated from `dof` degrees
+-- of freedom (two per frame seen), the Student-t form of the same,
+-- `κ(x)·((dof + 2)/2)·log((dof·s2 + sse2)/(dof·s2 + sse1))` (a track's first frame, dof 0,
+-- gives `κ(x)·log(sse2/sse1)`: one frame's residuals cannot tell their own noise).
 -- @tparam number sse1 first candidate's sum of squared residuals (px²)
 -- @tparam number sse2 second candidate's
 -- @tparam number s2 corner noise variance (px²)
 -- @tparam number x the first candidate's tilt over `√(σ/w)` (see the module's header)
+-- @tparam[opt] number dof degrees of freedom of `s2` (nil: known)
 -- @treturn number log-likelihood ratio
-function M.evidence(sse1, sse2, s2, x)
+function M.evidence(sse1, sse2, s2, x, dof)
   local k
   if x <= M.EVIDENCE_FROM then
     return 0
@@ -157,13 +169,15 @@ function M.evidence(sse1, sse2, s2, x)
   else
     k = M.EVIDENCE_MAX * (x - M.EVIDENCE_FROM) / (M.EVIDENCE_TO - M.EVIDENCE_FROM)
   end
-  return k * (sse2 - sse1) / (2 * s2)
+  if dof == nil then return k * (sse2 - sse1) / (2 * s2) end
+  local base = dof * s2 + M.NOISE_FLOOR
+  return k * 0.5 * (dof + 2) * log((base + sse2) / (base + sse1))
 end
 
 -- scratch for the children of one frame, as parallel arrays
 local cx, cy, cvx, cvy, cpp, cpv, cvv, clw, cw, cpick, cfrom, order = {}, {}, {}, {}, {}, {},
   {}, {}, {}, {}, {}, {}
-local kept = {}
+local kept, used = {}, {}
 
 -- child i: the hypothesis (x, y, vx, vy predicted with covariance pp, pv, vv) takes the
 -- measurement (mx, my), innovation variance s (its log-density's constant `norm`)
@@ -203,10 +217,12 @@ function M.confidence(p)
   return logistic(k[#k] + M.CONFIDENCE_TAIL * (l - k[#k - 1]))
 end
 
--- The time step and the corner noise of a frame after a state.
+-- The time step and the corner noise of a frame after a state: dt, time, the noise variance
+-- for this frame (and its degrees of freedom before it: nil when known), and the variance and
+-- degrees of freedom to carry on.
 local function step_and_noise(prev, frame, sse1, sse2)
-  local s2, t0 = 0, nil
-  if prev then s2, t0 = prev[3], prev[4] end
+  local s2, t0, dof = 0, nil, 0
+  if prev then s2, t0, dof = prev[3], prev[4], prev[8] end
   local time = frame.time
   local dt
   if time == nil then
@@ -216,15 +232,17 @@ local function step_and_noise(prev, frame, sse1, sse2)
     dt = t0 and time - t0 or M.FRAME
   end
   if not (dt >= M.MIN_STEP) then dt = M.MIN_STEP elseif dt > M.MAX_STEP then dt = M.MAX_STEP end
-  if frame.sigma2 then
-    s2 = frame.sigma2
-  elseif s2 > 0 then
-    s2 = (1 - M.NOISE_MEMORY) * s2 + M.NOISE_MEMORY * 0.5 * min(sse1, sse2)
-  else
-    s2 = 0.5 * min(sse1, sse2)
-  end
-  if not (s2 >= M.NOISE_FLOOR) then s2 = M.NOISE_FLOOR end
-  return dt, time, s2
+  local known = frame.sigma2
+  if known then return dt, time, known, nil, known, 0 end
+  local new = 0.5 * min(sse1, sse2)
+  local now = s2 > 0 and s2 or new
+  if not (now >= M.NOISE_FLOOR) then now = M.NOISE_FLOOR end
+  local carried = s2 > 0 and (1 - M.NOISE_MEMORY) * s2 + M.NOISE_MEMORY * new or new
+  if not (carried >= M.NOISE_FLOOR) then carried = M.NOISE_FLOOR end
+  local used_dof = s2 > 0 and dof or 0
+  local next_dof = used_dof + 2
+  if next_dof > M.NOISE_DOF then next_dof = M.NOISE_DOF end
+  return dt, time, now, used_dof, carried, next_dof
 end
 
 --- One frame of the filter.
@@ -244,7 +262,7 @@ function M.choose(prev, frame, out)
   local n = prev and prev[2] or 0
   local q1, q2, sse1 = frame.q1, frame.q2, frame.sse1
   local sse2 = q2 and frame.sse2 or sse1
-  local dt, time, s2 = step_and_noise(prev, frame, sse1, sse2)
+  local dt, time, s2, dof, s2_next, dof_next = step_and_noise(prev, frame, sse1, sse2)
   -- the candidates' tilt vectors, shrunk, and their variance
   local t1, size = frame.t1, frame.size
   local ax, ay = M.tilt(q1[1], q1[2], q1[3], q1[4], t1[1], t1[2], t1[3])
@@ -257,7 +275,7 @@ function M.choose(prev, frame, out)
   ax, ay, bx, by = g * ax, g * ay, g * bx, g * by
   local ev = 0
   if q2 then
-    ev = frame.llr or M.evidence(sse1, sse2, s2, xm)
+    ev = frame.llr or M.evidence(sse1, sse2, s2, xm, dof)
     if ev ~= ev then ev = 0 elseif ev > 700 then ev = 700 elseif ev < -700 then ev = -700 end
   end
   local half = 0.5 * ev
@@ -332,30 +350,43 @@ function M.choose(prev, frame, out)
     end
     order[j + 1] = i
   end
-  -- merge children that coincide, keep the best (of a weight that is not zero in doubles)
+  -- merge children that coincide, keep the best (of a weight that is not zero in doubles),
+  -- leaving RESERVE places to the best of the candidate the others did not choose
   local m, limit = 0, M.MERGE * M.MERGE
-  for r = 1, k do
-    local i = order[r]
-    if not (cw[i] > 1e-300) then break end
-    local merged = false
-    local pick, x, y, vx, vy = cpick[i], cx[i], cy[i], cvx[i], cvy[i]
-    for u = 1, m do
-      local j = kept[u]
-      if cpick[j] == pick then
-        local dx, dy = cx[j] - x, cy[j] - y
-        local dvx, dvy = cvx[j] - vx, cvy[j] - vy
-        if dx * dx + dy * dy + 0.01 * (dvx * dvx + dvy * dvy) < limit * (cpp[j] + r2) then
-          cw[j] = cw[j] + cw[i]
-          merged = true
-          break
+  local count1, count2 = 0, 0
+  for pass = 1, 2 do
+    local room = pass == 1 and M.HYPOTHESES - M.RESERVE or M.HYPOTHESES
+    for r = 1, k do
+      local i = order[r]
+      local pick = cpick[i]
+      local fits = pass == 1 and cw[i] > 1e-300
+        or pass == 2 and not used[i] and (pick == 1 and count1 or count2) < M.RESERVE
+      if fits and m < room then
+        used[i] = true
+        local merged = false
+        local x, y, vx, vy = cx[i], cy[i], cvx[i], cvy[i]
+        for u = 1, m do
+          local j = kept[u]
+          if cpick[j] == pick then
+            local dx, dy = cx[j] - x, cy[j] - y
+            local dvx, dvy = cvx[j] - vx, cvy[j] - vy
+            if dx * dx + dy * dy + 0.01 * (dvx * dvx + dvy * dvy) < limit * (cpp[j] + r2) then
+              cw[j] = cw[j] + cw[i]
+              merged = true
+              break
+            end
+          end
+        end
+        if not merged then
+          m = m + 1
+          kept[m] = i
+          if pick == 1 then count1 = count1 + 1 else count2 = count2 + 1 end
+          if not (cw[i] > 1e-300) then cw[i] = 1e-300 end
         end
       end
     end
-    if not merged and m < M.HYPOTHESES then
-      m = m + 1
-      kept[m] = i
-    end
   end
+  for i = 1, k do used[i] = nil end
   -- the new state
   local total, first = 0, 0
   for u = 1, m do
@@ -364,7 +395,8 @@ function M.choose(prev, frame, out)
     if cpick[kept[u]] == 1 then first = first + w end
   end
   local p1 = first / total
-  out[1], out[2], out[3], out[4], out[5], out[6], out[7] = M.STATE_TAG, m, s2, time, p1, a, b
+  out[1], out[2], out[3], out[4], out[5], out[6], out[7] = M.STATE_TAG, m, s2_next, time, p1, a, b
+  out[8] = dof_next
   for u = 1, m do
     local i, o = kept[u], HEADER + (u - 1) * STRIDE
     out[o + 1], out[o + 2], out[o + 3], out[o + 4] = cx[i], cy[i], cvx[i], cvy[i]
@@ -391,7 +423,7 @@ function M.is_state(t)
   for i = 5, 7 do
     if not (t[i] >= 0 and t[i] <= 1) then return false end
   end
-  if not (t[3] >= 0) then return false end
+  if not (t[3] >= 0 and t[8] >= 0) then return false end
   for h = 1, n do
     local o = HEADER + (h - 1) * STRIDE
     if not (t[o + 5] > 0 and t[o + 7] > 0) then return false end
@@ -417,6 +449,7 @@ function M.from_pose(out, q, t, q2, t2)
     bx, by = M.tilt(q2[1], q2[2], q2[3], q2[4], t2[1], t2[2], t2[3])
   end
   out[1], out[2], out[3], out[4], out[5], out[6], out[7] = M.STATE_TAG, 2, 0, 0, 0.5, 0.5, 0.5
+  out[8] = 0
   local o = HEADER
   out[o + 1], out[o + 2], out[o + 3], out[o + 4] = ax, ay, 0, 0
   out[o + 5], out[o + 6], out[o + 7], out[o + 8], out[o + 9] = 0.01, 0, M.RATE, 0, 1
