@@ -149,7 +149,7 @@ local function score(dir)
   local te, tp, re, flips, mirrors, tilted = {}, {}, {}, 0, 0, 0
   local est = {} -- per row: {r =, t =, flip =} or false
   -- calibration: 10 equal bins of confidence, over rows with two candidates > 10° apart
-  local bins, amb, sure, sure_wrong = {}, 0, 0, 0
+  local bins, amb, sure, sure_wrong, stake = {}, 0, 0, 0, 0
   for b = 1, 10 do bins[b] = { n = 0, right = 0, conf = 0 } end
   for i, row in ipairs(rows) do
     local pose = poses[i]
@@ -188,6 +188,12 @@ local function score(dir)
       est[i] = { r = r, t = { p.x, p.y, p.z }, rt = rt, tt = { tr.x, tr.y, tr.z }, flip = flip,
         key = tr.track or row.tag }
       local alt, conf = pose.alternative, confidences[i]
+      if alt then
+        -- at stake: one candidate within 30° of the truth and the other not, so that the
+        -- choice decides a flip (a coin toss flips half of these rows)
+        local ea = deg(rotation.angle(rt, rotation.from_nested(alt.rotation)))
+        if (rerr > 30) ~= (ea > 30) then stake = stake + 1 end
+      end
       if alt and conf then
         local ra = rotation.from_nested(alt.rotation)
         if deg(rotation.angle(r, ra)) > 10 then
@@ -230,6 +236,7 @@ local function score(dir)
     ambiguous = amb,
     sure = sure,
     sure_wrong = sure > 0 and 100 * sure_wrong / sure or 0 / 0,
+    stake = ok > 0 and 100 * stake / ok or 0 / 0,
   }
   if sequences then
     local jt, jr, sw = {}, {}, 0
@@ -354,10 +361,12 @@ local function run(dir)
     for _, name in ipairs(order) do print_row(name, peers[name], seq) end
     check(m, peers, order)
   end
+  print(("  at stake: %.2f %% of the rows (one candidate within 30° of the truth, the other"
+    .. " not: a coin toss flips half of them)"):format(m.stake))
   if args.track then
     print(("  confidence: ECE %.3f over %d rows with candidates > 10° apart; confidence >= 0.95"
-      .. " on %d rows, wrong branch on %.2f %% of them"):format(m.ece, m.ambiguous, m.sure,
-      m.sure_wrong))
+      .. " on %d rows, wrong branch on %s of them"):format(m.ece, m.ambiguous, m.sure,
+      m.sure > 0 and ("%.2f %%"):format(m.sure_wrong) or "–"))
   end
   print()
 end
