@@ -334,13 +334,17 @@ end
 -- @tparam[opt] table options
 --
 --   - `method`: `"refined"` (default) or `"seed"` (the report's method exactly);
---   - `prior`: the pose this tag had in the previous frame, for tracking (`tagpose.track`);
+--   - `prior`: the pose this tag had in the previous frame, for tracking (`tagpose.track`;
+--     `tagpose.tracker` does this for many tags);
+--   - `time`: this frame's time in seconds, for the tracking filter's motion model (default:
+--     `tagpose.track.FRAME` after the prior's frame);
 --   - `into`: a pose table from an earlier call to fill instead of allocating a new one;
 --   - `tolerance`: solveQuad's threshold (default 1e-10 for `"seed"`, `REFINED_TOLERANCE`
 --     for `"refined"`), `max_iterations`: its bound (default 100).
 -- @treturn table pose `{position = {x, y, z}, rotation = {{...}, {...}, {...}},
 --   quaternion = {w, x, y, z}, error = px, iterations = n, refine_iterations = n,
---   alternative = pose or nil, track = state}`
+--   confidence = probability of the right branch (with a prior: the tracking filter's
+--   posterior), alternative = pose or nil, track = state}`
 -- @return nil, string when the corners cannot be a tag's (the message says why)
 -- @raise `bad argument #n to 'solve' (...)` when an argument has the wrong type or range
 -- @usage

@@ -177,7 +177,7 @@ end
 -- scratch for the children of one frame, as parallel arrays
 local cx, cy, cvx, cvy, cpp, cpv, cvv, clw, cw, cpick, cfrom, order = {}, {}, {}, {}, {}, {},
   {}, {}, {}, {}, {}, {}
-local kept, used = {}, {}
+local kept, kept1, kept2, used = {}, {}, {}, {}
 
 -- child i: the hypothesis (x, y, vx, vy predicted with covariance pp, pv, vv) takes the
 -- measurement (mx, my), innovation variance s (its log-density's constant `norm`)
@@ -365,22 +365,27 @@ function M.choose(prev, frame, out)
         used[i] = true
         local merged = false
         local x, y, vx, vy = cx[i], cy[i], cvx[i], cvy[i]
-        for u = 1, m do
-          local j = kept[u]
-          if cpick[j] == pick then
-            local dx, dy = cx[j] - x, cy[j] - y
-            local dvx, dvy = cvx[j] - vx, cvy[j] - vy
-            if dx * dx + dy * dy + 0.01 * (dvx * dvx + dvy * dvy) < limit * (cpp[j] + r2) then
-              cw[j] = cw[j] + cw[i]
-              merged = true
-              break
-            end
+        local same = pick == 1 and kept1 or kept2
+        for u = 1, pick == 1 and count1 or count2 do
+          local j = same[u]
+          local dx, dy = cx[j] - x, cy[j] - y
+          local dvx, dvy = cvx[j] - vx, cvy[j] - vy
+          if dx * dx + dy * dy + 0.01 * (dvx * dvx + dvy * dvy) < limit * (cpp[j] + r2) then
+            cw[j] = cw[j] + cw[i]
+            merged = true
+            break
           end
         end
         if not merged then
           m = m + 1
           kept[m] = i
-          if pick == 1 then count1 = count1 + 1 else count2 = count2 + 1 end
+          if pick == 1 then
+            count1 = count1 + 1
+            kept1[count1] = i
+          else
+            count2 = count2 + 1
+            kept2[count2] = i
+          end
           if not (cw[i] > 1e-300) then cw[i] = 1e-300 end
         end
       end
