@@ -95,10 +95,11 @@ M.NOISE_MEMORY = 0.1
 M.NOISE_FLOOR = 1e-4
 --- Most degrees of freedom the running noise estimate is credited with (two per frame).
 M.NOISE_DOF = 20
---- The calibration of the confidence: pairs (posterior log-odds, confidence log-odds), a
--- piecewise-linear increasing map (slope `CONFIDENCE_TAIL` beyond the last pair), fitted to the
--- reliability of the posterior on synthetic sequences (see the module's header).
+-- The calibration of the confidence (`M.CONFIDENCE`): pairs (posterior log-odds, confidence
+-- log-odds) of a piecewise-linear increasing map, fitted to the reliability of the posterior
+-- on synthetic sequences (see the module's header).
 M.CONFIDENCE = { 0, 0, 6, 2.75, 11, 2.9, 14, 7.5, 40, 9 }
+--- Slope of the confidence's calibration beyond its last pair.
 M.CONFIDENCE_TAIL = 0.05
 --- Bounds on the time between frames (s).
 M.MIN_STEP = 1e-3
