@@ -285,6 +285,23 @@ describe("tracking with options.prior", function()
       assert.equal(2, pick)
     end)
 
+    it("keeps finite states however strong or weak the evidence", function()
+      local r, t = geometry.random_pose(geometry.rng(7), camera, SIZE, { width = 60, tilt = 0.6 })
+      local m = {}
+      require("tagpose.refine").mirror(r, t[1], t[2], t[3], m)
+      local rng = geometry.rng(17)
+      local state
+      for k = 0, 200 do
+        local f = frame_of(r, t, m, t, 1, 1, k / 30)
+        -- evidence from overwhelming (either way) to none, in a random order
+        f.llr = ({ 1e6, -1e6, 700, -700, 0, 1e-300, 40 })[math.floor(rng.uniform(1, 8))]
+        local out = {}
+        track.choose(state, f, out)
+        assert(track.is_state(out), "a state after frame " .. k)
+        state = out
+      end
+    end)
+
     it("calibrates the confidence as a monotone map onto [0.5, 1]", function()
       assert.equal(0.5, track.confidence(0.5))
       assert.equal(1, track.confidence(1))

@@ -42,7 +42,7 @@ local depth = {} -- the proximate solution's corner depths
 local r1, r2 = {}, {} -- rotations of the two candidates
 local qa, qb = {}, {} -- their quaternions {w, x, y, z}
 local ta, tb = {}, {} -- and positions {x, y, z}
-local frame = { q1 = qa, t1 = ta } -- the frame as the tracking filter reads it
+local frame = {} -- the frame as the tracking filter reads it
 local state = {} -- tracking state of this frame
 local prior_state = {} -- tracking state made from a prior without one
 local spare = setmetatable({}, { __mode = "k" }) -- into -> an alternative table to reuse
@@ -210,6 +210,59 @@ local function side()
   return 0.25 * s
 end
 
+-- The second half of `choose`: the tracking filter's choice between the two candidates (the
+-- first, r1, in qa and ta; the second, r2, in qb and tb; c1, c2 their sums of squares), and
+-- the result.
+local function decide(c1, c2, has2, k1, k2, iterations, prior, into)
+  local out_state = into and type(into.track) == "table" and into.track or state
+  -- the filter's frame: the candidates by error, the tag's size
+  local first = c2 < c1 and 2 or 1
+  local q1, q2, t1, t2 = qa, qb, ta, tb
+  if first == 2 then q1, q2, t1, t2, c1, c2 = qb, qa, tb, ta, c2, c1 end
+  frame.q1, frame.t1, frame.sse1 = q1, t1, c1
+  frame.q2, frame.t2, frame.sse2 = has2 and q2 or nil, t2, c2
+  frame.size = side()
+  local pick, p = track.choose(prior, frame, out_state)
+  local confidence = has2 and track.confidence(p) or 1
+  -- the pose: the first candidate by error unless the filter says otherwise
+  local qp, tp, qo, to, cp, co = q1, t1, q2, t2, c1, c2
+  local chosen = first
+  if pick == 2 then
+    qp, tp, qo, to, cp, co = q2, t2, q1, t1, c2, c1
+    chosen = 3 - first
+  end
+  local ra, rb, ka, kb = r1, r2, k1, k2
+  if chosen == 2 then ra, rb, ka, kb = r2, r1, k2, k1 end
+  local ea, eb = sqrt(cp / 4), sqrt(co / 4)
+  if not finite_pose(ra, tp[1], tp[2], tp[3], ea) then
+    return nil, "tagpose: no finite pose for these corners"
+  end
+  local alt = nil
+  if has2 and finite_pose(rb, to[1], to[2], to[3], eb) then
+    local reuse = into and (into.alternative or spare[into])
+    alt = pose.result(rb, to[1], to[2], to[3], eb, iterations, kb, reuse, qo[1], qo[2], qo[3],
+      qo[4])
+    alt.alternative, alt.track = nil, nil
+    alt.confidence = 1 - confidence
+  end
+  local result = pose.result(ra, tp[1], tp[2], tp[3], ea, iterations, ka + kb, into, qp[1],
+    qp[2], qp[3], qp[4])
+  if into and result.alternative and not alt then spare[into] = result.alternative end
+  result.alternative = alt
+  result.confidence = confidence
+  local st = result.track
+  if type(st) ~= "table" then
+    st = {}
+    result.track = st
+  end
+  if st ~= out_state then
+    local n = #out_state
+    for i = 1, n do st[i] = out_state[i] end
+    for i = n + 1, #st do st[i] = nil end
+  end
+  return result
+end
+
 -- The result of the refined method from the two minima (the first in r1, the second in r2;
 -- a sum of squares math.huge where that start led nowhere): the better by error, or the
 -- tracker's choice, as the pose, the other as its alternative.
@@ -234,57 +287,11 @@ local function choose(tx, ty, tz, c1, k1, ux, uy, uz, c2, k2, iterations, prior,
     local dp, dm = dw * dw + dx * dx + dy * dy + dz * dz, ow * ow + ox * ox + oy * oy + oz * oz
     has2 = (dp < dm and dp or dm) > 2.5e-13
   end
-  -- which candidate is the pose: the tracking filter's choice, which starts from the smaller
-  -- error (the filter's frame: the candidates by error, their positions, the tag's size)
-  local first = c2 < c1 and 2 or 1
-  local out_state = into and type(into.track) == "table" and into.track or state
-  if first == 1 then
-    qa[1], qa[2], qa[3], qa[4], qb[1], qb[2], qb[3], qb[4] = w1, x1, y1, z1, w2, x2, y2, z2
-    ta[1], ta[2], ta[3], tb[1], tb[2], tb[3] = tx, ty, tz, ux, uy, uz
-    frame.sse1, frame.sse2 = c1, c2
-  else
-    qa[1], qa[2], qa[3], qa[4], qb[1], qb[2], qb[3], qb[4] = w2, x2, y2, z2, w1, x1, y1, z1
-    ta[1], ta[2], ta[3], tb[1], tb[2], tb[3] = ux, uy, uz, tx, ty, tz
-    frame.sse1, frame.sse2 = c2, c1
-  end
-  frame.q2, frame.t2, frame.size = has2 and qb or nil, tb, side()
-  local pick, p = track.choose(prior, frame, out_state)
-  if pick == 2 then first = 3 - first end
-  local confidence = has2 and track.confidence(p) or 1
-
-  local ra, rb = r1, r2
-  local ax, ay, az, bx, by, bz = tx, ty, tz, ux, uy, uz
-  local ca, cb, ka, kb = c1, c2, k1, k2
-  if first == 2 then
-    ra, rb, ax, ay, az, bx, by, bz, ca, cb, ka, kb = r2, r1, ux, uy, uz, tx, ty, tz, c2, c1, k2, k1
-    w1, x1, y1, z1, w2, x2, y2, z2 = w2, x2, y2, z2, w1, x1, y1, z1
-  end
-  local ea, eb = sqrt(ca / 4), sqrt(cb / 4)
-  if not finite_pose(ra, ax, ay, az, ea) then
-    return nil, "tagpose: no finite pose for these corners"
-  end
-  local alt = nil
-  if has2 and finite_pose(rb, bx, by, bz, eb) then
-    local reuse = into and (into.alternative or spare[into])
-    alt = pose.result(rb, bx, by, bz, eb, iterations, kb, reuse, w2, x2, y2, z2)
-    alt.alternative, alt.track = nil, nil
-  end
-  local result = pose.result(ra, ax, ay, az, ea, iterations, ka + kb, into, w1, x1, y1, z1)
-  if into and result.alternative and not alt then spare[into] = result.alternative end
-  result.alternative = alt
-  result.confidence = confidence
-  if alt then alt.confidence = 1 - confidence end
-  local st = result.track
-  if type(st) ~= "table" then
-    st = {}
-    result.track = st
-  end
-  if st ~= out_state then
-    local n = #out_state
-    for i = 1, n do st[i] = out_state[i] end
-    for i = n + 1, #st do st[i] = nil end
-  end
-  return result
+  -- the candidates in the scratch tables, so that few values are live across the filter (a
+  -- tail call)
+  qa[1], qa[2], qa[3], qa[4], qb[1], qb[2], qb[3], qb[4] = w1, x1, y1, z1, w2, x2, y2, z2
+  ta[1], ta[2], ta[3], tb[1], tb[2], tb[3] = tx, ty, tz, ux, uy, uz
+  return decide(c1, c2, has2, k1, k2, iterations, prior, into)
 end
 
 -- The refined method when the local starts put a corner behind the camera (at round-off, on

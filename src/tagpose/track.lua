@@ -246,6 +246,34 @@ local function step_and_noise(prev, frame, sse1, sse2)
   return dt, time, now, used_dof, carried, next_dof
 end
 
+-- A track's first frame: a path at each candidate, weighted by the evidence (what `choose`
+-- does with no hypotheses, without its loops).
+local function start(out, time, s2, dof, ax, ay, bx, by, r2, has2, ev)
+  -- log-weights of the two paths, summing to one in probability (ev is within ±700)
+  local a = ev >= 0 and -ev or ev
+  local lw_better = -log(1 + exp(a))
+  local lw1, lw2 = lw_better, a + lw_better
+  if ev < 0 then lw1, lw2 = lw2, lw1 end
+  local p1 = has2 and exp(lw1) or 1
+  if not has2 then lw1 = 0 end
+  out[1], out[2], out[3], out[4], out[5], out[6], out[7] = M.STATE_TAG, has2 and 2 or 1, s2,
+    time, p1, 0.5, 0.5
+  out[8] = dof
+  local o = HEADER
+  out[o + 1], out[o + 2], out[o + 3], out[o + 4] = ax, ay, 0, 0
+  out[o + 5], out[o + 6], out[o + 7], out[o + 8], out[o + 9] = r2, 0, M.RATE, lw1, 1
+  local n = 1
+  if has2 then
+    o = HEADER + STRIDE
+    out[o + 1], out[o + 2], out[o + 3], out[o + 4] = bx, by, 0, 0
+    out[o + 5], out[o + 6], out[o + 7], out[o + 8], out[o + 9] = r2, 0, M.RATE, lw2, 2
+    n = 2
+  end
+  for i = HEADER + n * STRIDE + 1, #out do out[i] = nil end
+  if p1 >= 0.5 then return 1, p1, 0.5, 0.5 end
+  return 2, 1 - p1, 0.5, 0.5
+end
+
 --- One frame of the filter.
 -- `frame` describes the frame's candidates: `q1 = {w, x, y, z}`, `t1 = {x, y, z}`, `sse1`
 -- (px²) of the first; `q2`, `t2`, `sse2` of the second, or `q2 = nil` when there is one;
@@ -280,6 +308,7 @@ function M.choose(prev, frame, out)
     if ev ~= ev then ev = 0 elseif ev > 700 then ev = 700 elseif ev < -700 then ev = -700 end
   end
   local half = 0.5 * ev
+  if n == 0 then return start(out, time, s2_next, dof_next, ax, ay, bx, by, r2, q2 ~= nil, ev) end
   -- children of every hypothesis: it continues with the first or the second candidate (the
   -- state's log-weights sum to one in probability)
   local k, q = 0, M.PROCESS
