@@ -165,7 +165,7 @@ describe("tracking with options.prior", function()
         local qb = { b.quaternion.w, b.quaternion.x, b.quaternion.y, b.quaternion.z }
         local p = { a.position.x, a.position.y, a.position.z }
         local state = track.from_pose({}, qa, p, qb, p)
-        state[3], state[8] = 0.09, track.NOISE_DOF
+        state[3] = 0.09
         state[track.HEADER + 5], state[track.HEADER + track.STRIDE + 5] = 1e-6, 1e-6
         state[track.HEADER + 8], state[track.HEADER + track.STRIDE + 8] = 0, -40
         local pose = assert(tagpose.solve(px, camera, SIZE, { prior = { quaternion =

@@ -35,8 +35,7 @@
 -- `κ(x)·(SSE₂ − SSE₁)/(2σ²)`, where the weight `κ` rises from 0 at `x = EVIDENCE_FROM` to
 -- `EVIDENCE_MAX` at `EVIDENCE_TO` (near face-on the error difference says nothing about the
 -- branch). σ² is `frame.sigma2` when given, else estimated online from the best candidate's
--- SSE (`SSE/2` for its two residual degrees of freedom, weight `NOISE_MEMORY` per frame), and
--- the evidence then takes the estimate's own uncertainty into account (`M.evidence`).
+-- SSE (`SSE/2` for its two residual degrees of freedom, weight `NOISE_MEMORY` per frame).
 --
 -- **The confidence** returned is the filter's posterior probability of the chosen candidate,
 -- calibrated by an increasing map of its log-odds (`CONFIDENCE`), fitted on the synthetic
@@ -46,10 +45,10 @@
 --
 -- The state is a flat array of numbers (`pose.track`): `STATE_TAG`, the number of
 -- hypotheses `n`, σ² (0 while unknown), the time of its frame, the posterior probability of
--- that frame's first candidate, the two smoothing numbers `choose` returns (below), the
--- degrees of freedom of the noise estimate, then per hypothesis nine numbers: `τx, τy`, their
--- rates, the position variance, the position-rate covariance, the rate variance (per axis), the
--- log-weight, and the candidate it chose (1 or 2, in that frame's order).
+-- that frame's first candidate, the two smoothing numbers `choose` returns (below), then per
+-- hypothesis nine numbers: `τx, τy`, their rates, the position variance, the position-rate
+-- covariance, the rate variance (per axis), the log-weight, and the candidate it chose (1 or
+-- 2, in that frame's order).
 -- @module tagpose.track
 
 local sqrt, exp, log, min = math.sqrt, math.exp, math.log, math.min
@@ -61,7 +60,7 @@ M.STATE_TAG = 20240601
 --- Numbers per hypothesis in the state.
 M.STRIDE = 9
 --- Header numbers before the hypotheses.
-M.HEADER = 8
+M.HEADER = 7
 --- Nominal time between frames (s), when no time is given.
 M.FRAME = 1 / 30
 --- Most hypotheses kept.
@@ -93,8 +92,6 @@ M.EVIDENCE_MAX = 0.9
 M.NOISE_MEMORY = 0.1
 --- Floor of the noise variance estimate (px²).
 M.NOISE_FLOOR = 1e-4
---- Most degrees of freedom the running noise estimate is credited with (two per frame).
-M.NOISE_DOF = 20
 -- The calibration of the confidence (`M.CONFIDENCE`): pairs (posterior log-odds, confidence
 -- log-odds) of a piecewise-linear increasing map, fitted to the reliability of the posterior
 -- on synthetic sequences (see the module's header).
@@ -150,18 +147,14 @@ local function measurement(m, size, s2)
   return g, r * r, x
 end
 
---- The default evidence of one frame for its first candidate against its second.
--- With the noise variance known, `κ(x)·(sse2 − sse1)/(2·s2)`; estimated from `dof` degrees
--- of freedom (two per frame seen), the Student-t form of the same,
--- `κ(x)·((dof + 2)/2)·log((dof·s2 + sse2)/(dof·s2 + sse1))` (a track's first frame, dof 0,
--- gives `κ(x)·log(sse2/sse1)`: one frame's residuals cannot tell their own noise).
+--- The default evidence of one frame for its first candidate against its second:
+-- `κ(x)·(sse2 − sse1)/(2·s2)`.
 -- @tparam number sse1 first candidate's sum of squared residuals (px²)
 -- @tparam number sse2 second candidate's
 -- @tparam number s2 corner noise variance (px²)
 -- @tparam number x the first candidate's tilt over `√(σ/w)` (see the module's header)
--- @tparam[opt] number dof degrees of freedom of `s2` (nil: known)
 -- @treturn number log-likelihood ratio
-function M.evidence(sse1, sse2, s2, x, dof)
+function M.evidence(sse1, sse2, s2, x)
   local k
   if x <= M.EVIDENCE_FROM then
     return 0
@@ -170,9 +163,7 @@ function M.evidence(sse1, sse2, s2, x, dof)
   else
     k = M.EVIDENCE_MAX * (x - M.EVIDENCE_FROM) / (M.EVIDENCE_TO - M.EVIDENCE_FROM)
   end
-  if dof == nil then return k * (sse2 - sse1) / (2 * s2) end
-  local base = dof * s2 + M.NOISE_FLOOR
-  return k * 0.5 * (dof + 2) * log((base + sse2) / (base + sse1))
+  return k * (sse2 - sse1) / (2 * s2)
 end
 
 -- scratch for the children of one frame, as parallel arrays
@@ -219,11 +210,10 @@ function M.confidence(p)
 end
 
 -- The time step and the corner noise of a frame after a state: dt, time, the noise variance
--- for this frame (and its degrees of freedom before it: nil when known), and the variance and
--- degrees of freedom to carry on.
+-- for this frame, and the variance to carry on.
 local function step_and_noise(prev, frame, sse1, sse2)
-  local s2, t0, dof = 0, nil, 0
-  if prev then s2, t0, dof = prev[3], prev[4], prev[8] end
+  local s2, t0 = 0, nil
+  if prev then s2, t0 = prev[3], prev[4] end
   local time = frame.time
   local dt
   if time == nil then
@@ -234,21 +224,16 @@ local function step_and_noise(prev, frame, sse1, sse2)
   end
   if not (dt >= M.MIN_STEP) then dt = M.MIN_STEP elseif dt > M.MAX_STEP then dt = M.MAX_STEP end
   local known = frame.sigma2
-  if known then return dt, time, known, nil, known, 0 end
+  if known then return dt, time, known, known end
   local new = 0.5 * min(sse1, sse2)
-  local now = s2 > 0 and s2 or new
-  if not (now >= M.NOISE_FLOOR) then now = M.NOISE_FLOOR end
   local carried = s2 > 0 and (1 - M.NOISE_MEMORY) * s2 + M.NOISE_MEMORY * new or new
   if not (carried >= M.NOISE_FLOOR) then carried = M.NOISE_FLOOR end
-  local used_dof = s2 > 0 and dof or 0
-  local next_dof = used_dof + 2
-  if next_dof > M.NOISE_DOF then next_dof = M.NOISE_DOF end
-  return dt, time, now, used_dof, carried, next_dof
+  return dt, time, carried, carried
 end
 
 -- A track's first frame: a path at each candidate, weighted by the evidence (what `choose`
 -- does with no hypotheses, without its loops).
-local function start(out, time, s2, dof, ax, ay, bx, by, r2, has2, ev)
+local function start(out, time, s2, ax, ay, bx, by, r2, has2, ev)
   -- log-weights of the two paths, summing to one in probability (ev is within ±700)
   local a = ev >= 0 and -ev or ev
   local lw_better = -log(1 + exp(a))
@@ -258,7 +243,6 @@ local function start(out, time, s2, dof, ax, ay, bx, by, r2, has2, ev)
   if not has2 then lw1 = 0 end
   out[1], out[2], out[3], out[4], out[5], out[6], out[7] = M.STATE_TAG, has2 and 2 or 1, s2,
     time, p1, 0.5, 0.5
-  out[8] = dof
   local o = HEADER
   out[o + 1], out[o + 2], out[o + 3], out[o + 4] = ax, ay, 0, 0
   out[o + 5], out[o + 6], out[o + 7], out[o + 8], out[o + 9] = r2, 0, M.RATE, lw1, 1
@@ -291,7 +275,7 @@ function M.choose(prev, frame, out)
   local n = prev and prev[2] or 0
   local q1, q2, sse1 = frame.q1, frame.q2, frame.sse1
   local sse2 = q2 and frame.sse2 or sse1
-  local dt, time, s2, dof, s2_next, dof_next = step_and_noise(prev, frame, sse1, sse2)
+  local dt, time, s2, s2_next = step_and_noise(prev, frame, sse1, sse2)
   -- the candidates' tilt vectors, shrunk, and their variance
   local t1, size = frame.t1, frame.size
   local ax, ay = M.tilt(q1[1], q1[2], q1[3], q1[4], t1[1], t1[2], t1[3])
@@ -304,11 +288,11 @@ function M.choose(prev, frame, out)
   ax, ay, bx, by = g * ax, g * ay, g * bx, g * by
   local ev = 0
   if q2 then
-    ev = frame.llr or M.evidence(sse1, sse2, s2, xm, dof)
+    ev = frame.llr or M.evidence(sse1, sse2, s2, xm)
     if ev ~= ev then ev = 0 elseif ev > 700 then ev = 700 elseif ev < -700 then ev = -700 end
   end
   local half = 0.5 * ev
-  if n == 0 then return start(out, time, s2_next, dof_next, ax, ay, bx, by, r2, q2 ~= nil, ev) end
+  if n == 0 then return start(out, time, s2_next, ax, ay, bx, by, r2, q2 ~= nil, ev) end
   -- children of every hypothesis: it continues with the first or the second candidate (the
   -- state's log-weights sum to one in probability)
   local k, q = 0, M.PROCESS
@@ -431,7 +415,6 @@ function M.choose(prev, frame, out)
   end
   local p1 = first / total
   out[1], out[2], out[3], out[4], out[5], out[6], out[7] = M.STATE_TAG, m, s2_next, time, p1, a, b
-  out[8] = dof_next
   for u = 1, m do
     local i, o = kept[u], HEADER + (u - 1) * STRIDE
     out[o + 1], out[o + 2], out[o + 3], out[o + 4] = cx[i], cy[i], cvx[i], cvy[i]
@@ -458,7 +441,7 @@ function M.is_state(t)
   for i = 5, 7 do
     if not (t[i] >= 0 and t[i] <= 1) then return false end
   end
-  if not (t[3] >= 0 and t[8] >= 0) then return false end
+  if not (t[3] >= 0) then return false end
   for h = 1, n do
     local o = HEADER + (h - 1) * STRIDE
     if not (t[o + 5] > 0 and t[o + 7] > 0) then return false end
@@ -484,7 +467,6 @@ function M.from_pose(out, q, t, q2, t2)
     bx, by = M.tilt(q2[1], q2[2], q2[3], q2[4], t2[1], t2[2], t2[3])
   end
   out[1], out[2], out[3], out[4], out[5], out[6], out[7] = M.STATE_TAG, 2, 0, 0, 0.5, 0.5, 0.5
-  out[8] = 0
   local o = HEADER
   out[o + 1], out[o + 2], out[o + 3], out[o + 4] = ax, ay, 0, 0
   out[o + 5], out[o + 6], out[o + 7], out[o + 8], out[o + 9] = 0.01, 0, M.RATE, 0, 1
