@@ -1,11 +1,18 @@
 -- Score tagpose on a data set in the format of shared/bench/dev (camera.lua, corners.csv,
 -- truth.csv), with the metrics of its PEERS.md, and print the peers' rows beside ours.
 --
---   lua5.4 examples/accuracy.lua DATASET_DIR [--method refined|seed] [--track] [--peers FILE]
+--   lua5.4 examples/accuracy.lua DATASET_DIR [--method refined|seed] [--track | --smooth]
+--     [--fps F] [--peers FILE]
 --
 -- DATASET_DIR may also be a directory of data sets (every subdirectory with a corners.csv is
 -- scored). PEERS.md is looked for beside the data sets unless --peers names it.
--- With --track, each tag's pose from the previous frame (frame - 1) is passed as the prior.
+-- With --track, the rows are fed frame by frame to tagpose.tracker (causal: each tag's track
+-- carries the branch from frame to frame); with --smooth, the tracker's choices are then
+-- revised with the later frames (tracker:smooth()). A frame's time is the corner log's `time`
+-- column when it has one, else frame / F (default 30 frames per second). With either, the
+-- calibration of pose.confidence is printed too: expected calibration error (10 equal bins)
+-- over the rows whose two candidates differ by more than 10°, and the share of wrong branches
+-- among the rows with confidence >= 0.95.
 
 package.path = "./src/?.lua;./src/?/init.lua;" .. package.path
 local tagpose = require("tagpose")
@@ -16,11 +23,11 @@ local sqrt, abs, floor, deg = math.sqrt, math.abs, math.floor, math.deg
 
 local function usage(msg)
   io.stderr:write((msg and msg .. "\n" or "") .. "usage: lua examples/accuracy.lua DATASET_DIR "
-    .. "[--method refined|seed] [--track] [--peers PEERS.md]\n")
+    .. "[--method refined|seed] [--track | --smooth] [--fps F] [--peers PEERS.md]\n")
   os.exit(2)
 end
 
-local args = { method = nil, track = false }
+local args = { method = nil, track = false, smooth = false, fps = 30 }
 do
   local i = 1
   while i <= #arg do
@@ -30,6 +37,11 @@ do
       args.method = arg[i] or usage("--method needs a value")
     elseif a == "--track" then
       args.track = true
+    elseif a == "--smooth" then
+      args.track, args.smooth = true, true
+    elseif a == "--fps" then
+      i = i + 1
+      args.fps = tonumber(arg[i]) or usage("--fps needs a number")
     elseif a == "--peers" then
       i = i + 1
       args.peers = arg[i] or usage("--peers needs a value")
@@ -98,25 +110,56 @@ local function score(dir)
   local meta = io.open(dir .. "/meta.json", "r")
   local sequences = meta and meta:read("*a"):find('"sequences"%s*:%s*%[') ~= nil
   if meta then meta:close() end
-  local options = { method = args.method }
-  local last = {} -- tag -> {frame =, pose =}
+  -- the poses: one solve per row, or the tracker fed frame by frame
+  local t0 = os.clock()
+  local poses, confidences = {}, {}
+  if args.track then
+    local tr = tagpose.tracker.new(camera, info.tag_size, { method = args.method,
+      smooth = args.smooth })
+    local i = 1
+    while i <= #rows do
+      local j, frame = i, {}
+      while j <= #rows and rows[j].frame == rows[i].frame do
+        frame[#frame + 1] = { id = rows[j].tag, corners = rows[j].corners }
+        j = j + 1
+      end
+      local time = rows[i].fields.time or rows[i].frame / args.fps
+      local seen = tr:update(frame, time)
+      for k = 1, #seen do
+        poses[i + k - 1] = seen[k].pose or false
+        confidences[i + k - 1] = seen[k].pose and seen[k].pose.confidence
+      end
+      i = j
+    end
+    if args.smooth then
+      local choice, confidence = tr:smooth()
+      for r = 1, #rows do
+        if choice[r] == 2 then poses[r] = poses[r].alternative end
+        if choice[r] > 0 then confidences[r] = confidence[r] end
+      end
+    end
+  else
+    local options = { method = args.method }
+    for i, row in ipairs(rows) do
+      poses[i] = tagpose.solve(row.corners, camera, info.tag_size, options) or false
+      confidences[i] = poses[i] and poses[i].confidence
+    end
+  end
+  local solve_seconds = os.clock() - t0
   local ok, nan, iters, iters_n = 0, 0, 0, 0
   local te, tp, re, flips, mirrors, tilted = {}, {}, {}, 0, 0, 0
   local est = {} -- per row: {r =, t =, flip =} or false
-  local t0 = os.clock()
+  -- calibration: 10 equal bins of confidence, over rows with two candidates > 10° apart
+  local bins, amb, sure, sure_wrong, stake = {}, 0, 0, 0, 0
+  for b = 1, 10 do bins[b] = { n = 0, right = 0, conf = 0 } end
   for i, row in ipairs(rows) do
-    if args.track then
-      local prev = last[row.tag]
-      options.prior = prev and prev.frame == row.frame - 1 and prev.pose or nil
-    end
-    local pose = tagpose.solve(row.corners, camera, info.tag_size, options)
+    local pose = poses[i]
     est[i] = false
     if pose then
       local p = pose.position
       local finite = p.x == p.x and p.y == p.y and p.z == p.z
       if not finite then nan = nan + 1 end
       ok = ok + 1
-      last[row.tag] = { frame = row.frame, pose = pose }
       local tr = truth[i]
       local rt = quat_matrix(tr.qw, tr.qx, tr.qy, tr.qz)
       local r = rotation.from_nested(pose.rotation)
@@ -143,10 +186,38 @@ local function score(dir)
       end
       iters = iters + pose.iterations
       iters_n = iters_n + 1
-      est[i] = { r = r, t = { p.x, p.y, p.z }, rt = rt, tt = { tr.x, tr.y, tr.z }, flip = flip }
+      est[i] = { r = r, t = { p.x, p.y, p.z }, rt = rt, tt = { tr.x, tr.y, tr.z }, flip = flip,
+        key = tr.track or row.tag }
+      local alt, conf = pose.alternative, confidences[i]
+      if alt then
+        -- at stake: one candidate within 30° of the truth and the other not, so that the
+        -- choice decides a flip (a coin toss flips half of these rows)
+        local ea = deg(rotation.angle(rt, rotation.from_nested(alt.rotation)))
+        if (rerr > 30) ~= (ea > 30) then stake = stake + 1 end
+      end
+      if alt and conf then
+        local ra = rotation.from_nested(alt.rotation)
+        if deg(rotation.angle(r, ra)) > 10 then
+          -- the returned pose is on the true branch when it is the nearer to the truth
+          local right = rerr <= deg(rotation.angle(rt, ra))
+          amb = amb + 1
+          local b = bins[conf >= 1 and 10 or floor(conf * 10) + 1]
+          b.n, b.conf = b.n + 1, b.conf + conf
+          if right then b.right = b.right + 1 end
+          if conf >= 0.95 then
+            sure = sure + 1
+            if not right then sure_wrong = sure_wrong + 1 end
+          end
+        end
+      end
     end
   end
-  local seconds = os.clock() - t0
+  local seconds = solve_seconds
+  local ece = 0
+  for b = 1, 10 do
+    local B = bins[b]
+    if B.n > 0 then ece = ece + B.n / amb * abs(B.right / B.n - B.conf / B.n) end
+  end
   local m = {
     name = dir:match("([^/]+)/*$"),
     rows = #rows,
@@ -162,12 +233,22 @@ local function score(dir)
     mirror = tilted > 0 and 100 * mirrors / tilted or 0 / 0,
     iters = iters_n > 0 and iters / iters_n or 0 / 0,
     us = seconds / #rows * 1e6,
+    ece = amb > 0 and ece or 0 / 0,
+    ambiguous = amb,
+    sure = sure,
+    sure_wrong = sure > 0 and 100 * sure_wrong / sure or 0 / 0,
+    stake = ok > 0 and 100 * stake / ok or 0 / 0,
   }
   if sequences then
     local jt, jr, sw = {}, {}, 0
-    for i = 2, #rows do
-      local a, b = est[i - 1], est[i]
-      local consecutive = rows[i].frame == rows[i - 1].frame + 1 and rows[i].tag == rows[i - 1].tag
+    local last = {} -- key (the truth's track, else the tag) -> row
+    for i = 1, #rows do
+      local b = est[i]
+      local key = b and b.key
+      local h = key ~= nil and last[key]
+      local a = h and est[h]
+      local consecutive = h and rows[i].frame == rows[h].frame + 1
+      if key ~= nil then last[key] = i end
       if a and b and consecutive then
         local d = 0
         for k = 1, 3 do
@@ -268,8 +349,9 @@ end
 local function run(dir)
   local m = score(dir)
   local seq = m.jit_t_med ~= nil
-  local label = "tagpose " .. (args.method or "default") .. (args.track and " --track" or "")
-  print(("### %s (%d rows)  [%s, %s, %.1f µs/row incl. scoring]"):format(m.name, m.rows,
+  local label = "tagpose " .. (args.method or "default")
+    .. (args.smooth and " --smooth" or args.track and " --track" or "")
+  print(("### %s (%d rows)  [%s, %s, %.1f µs/row]"):format(m.name, m.rows,
     _VERSION .. (rawget(_G, "jit") and " (LuaJIT)" or ""), label, m.us))
   print(HEADER .. (seq and SEQ_HEADER or ""))
   print("|---|" .. ("---:|"):rep(#COLUMNS + (seq and #SEQ_COLUMNS or 0)))
@@ -279,6 +361,13 @@ local function run(dir)
   if peers and #order > 0 then
     for _, name in ipairs(order) do print_row(name, peers[name], seq) end
     check(m, peers, order)
+  end
+  print(("  at stake: %.2f %% of the rows (one candidate within 30° of the truth, the other"
+    .. " not: a coin toss flips half of them)"):format(m.stake))
+  if args.track then
+    print(("  confidence: ECE %.3f over %d rows with candidates > 10° apart; confidence >= 0.95"
+      .. " on %d rows, wrong branch on %s of them"):format(m.ece, m.ambiguous, m.sure,
+      m.sure > 0 and ("%.2f %%"):format(m.sure_wrong) or "–"))
   end
   print()
 end

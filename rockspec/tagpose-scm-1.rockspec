@@ -68,6 +68,7 @@ build = {
     ["tagpose.solvequad"] = "src/tagpose/solvequad.lua",
     ["tagpose.square"] = "src/tagpose/square.lua",
     ["tagpose.track"] = "src/tagpose/track.lua",
+    ["tagpose.tracker"] = "src/tagpose/tracker.lua",
     ["tagpose.uncertainty"] = "src/tagpose/uncertainty/init.lua",
     ["tagpose.uncertainty.matrix"] = "src/tagpose/uncertainty/matrix.lua",
     ["tagpose.uncertainty.model"] = "src/tagpose/uncertainty/model.lua",

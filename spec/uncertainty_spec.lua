@@ -4,6 +4,7 @@
 
 local tagpose = require("tagpose")
 local uncertainty = require("tagpose.uncertainty")
+local track = require("tagpose.track")
 local rotation = require("tagpose.rotation")
 local G = require("support.geometry")
 local assertions = require("support.assertions")
@@ -226,7 +227,11 @@ describe("tagpose.uncertainty", function()
         prior = assert(tagpose.solve(noisy(px, rng, sigma), CAMERA, s, { sigma = sigma,
           prior = prior }))
         if prior.alternative and k > 1 then
-          assert.is_true(abs(prior.confidence - 1 / (1 + math.exp(-prior.track[9]))) < 1e-12)
+          -- the state's posterior of the frame's first candidate by error, calibrated
+          local p_first = prior.track[5]
+          local first = prior.error <= prior.alternative.error
+          local expected = track.confidence(first and p_first or 1 - p_first)
+          assert.is_true(abs(prior.confidence - expected) < 1e-12)
           assert.equal(1 - prior.confidence, prior.alternative.confidence)
         end
       end

@@ -19,10 +19,9 @@ local pipeline = require("tagpose.pipeline")
 local uncertainty = require("tagpose.uncertainty")
 local refine = require("tagpose.refine")
 
-local is_positive, describe = args.is_positive, args.describe
-local sqrt, exp = math.sqrt, math.exp
+local is_positive, describe, is_finite = args.is_positive, args.describe, compat.is_finite
+local sqrt = math.sqrt
 local to_quaternion = rotation.to_quaternion
-local _ = compat
 
 local M = {
   _VERSION = "tagpose 0.1.0",
@@ -35,11 +34,13 @@ M.REFINED_TOLERANCE = pipeline.REFINED_TOLERANCE
 
 local work = pipeline.new() -- the pipeline's workspace, reused by every solve
 local state = {} -- tracking state of this frame, when the result has none to fill
-local qa, qb = {}, {} -- the candidates' quaternions, as the tracker takes them
+local qa, qb = {}, {} -- the candidates' quaternions, as the tracking filter takes them
+local ta, tb = {}, {} -- and their positions
+local frame = { q1 = qa, t1 = ta, q2 = qb, t2 = tb } -- the frame as the filter reads it
 local spare = setmetatable({}, { __mode = "k" }) -- into -> an alternative table to reuse
 
 -- the options solve takes
-local OPTIONS = { "method", "prior", "into", "tolerance", "max_iterations", "sigma" }
+local OPTIONS = { "method", "prior", "into", "tolerance", "max_iterations", "sigma", "time" }
 
 -- Read the options; or nil and a description of the misuse.
 local function read_options(options)
@@ -84,40 +85,55 @@ local function read_options(options)
   if sigma ~= nil and not is_positive(sigma) then
     return nil, "options.sigma: positive number expected, got " .. describe(sigma)
   end
-  return method, tol, max_it, prior, into, sigma
+  local time = options.time
+  if time ~= nil and not is_finite(time) then
+    return nil, "options.time: finite number expected, got "
+      .. (time ~= time and "NaN" or describe(time))
+  end
+  return method, tol, max_it, prior, into, sigma, time
 end
 
 local function arg_error(n, message)
   args.raise(n, "solve", message, 3)
 end
 
+-- The tag's mean side in pixels (the corners px, flat).
+-- (Written out: on LuaJIT a loop here starts a side trace that cannot be compiled.)
+local function side(px)
+  local u1, v1, u2, v2, u3, v3, u4, v4 = px[1], px[2], px[3], px[4], px[5], px[6], px[7], px[8]
+  return 0.25 * (sqrt((u2 - u1) ^ 2 + (v2 - v1) ^ 2) + sqrt((u3 - u2) ^ 2 + (v3 - v2) ^ 2)
+    + sqrt((u4 - u3) ^ 2 + (v4 - v3) ^ 2) + sqrt((u1 - u4) ^ 2 + (v1 - v4) ^ 2))
+end
+
 -- Which candidate of an ordered workspace is the pose: the first (the smaller error), or the
--- tracker's choice given the prior's state; the track state of this frame goes into `out`.
--- Returns the pose's candidate and the other (nil when there is no second minimum).
-local function choose(w, prior, out)
+-- tracking filter's choice given the prior's state (`tagpose.track`); the track state of this
+-- frame goes into `out`. Returns the pose's candidate, the other (nil when there is no second
+-- minimum) and, with a prior, the filter's calibrated confidence in the pose.
+local function choose(w, prior, out, sigma, time)
   local a, b = w.first, w.second
   local has2 = w.count == 2
   qa[1], qa[2], qa[3], qa[4] = a.qw, a.qx, a.qy, a.qz
+  ta[1], ta[2], ta[3] = a.tx, a.ty, a.tz
   qb[1], qb[2], qb[3], qb[4] = b.qw, b.qx, b.qy, b.qz
-  if prior then
-    if track.choose(prior, qa, a.sse, has2 and qb or nil, b.sse, out) == 2 and has2 then
-      a, b = b, a
-    end
-  else
-    track.start(out, qa, a.sse, has2 and qb or nil, b.sse)
-  end
-  return a, has2 and b or nil
+  tb[1], tb[2], tb[3] = b.tx, b.ty, b.tz
+  local f = frame
+  f.q2, f.sse1, f.sse2 = has2 and qb or nil, a.sse, b.sse
+  f.size, f.time, f.sigma2 = side(w.px), time, sigma and sigma * sigma or nil
+  local pick, p = track.choose(prior, f, out)
+  if not has2 then return a, nil, nil end
+  if pick == 2 and prior then a, b = b, a end
+  return a, b, prior and track.confidence(p) or nil
 end
 
 -- The branch confidence of a result and its alternative (their candidates a and b), and their
 -- covariances, made when first read (`tagpose.uncertainty`). σ²: options.sigma, else the
--- tracker's running estimate, else the default pooled with the frame's residuals. With a
--- tracking state the confidence is the tracker's posterior.
-local function uncertain(result, alt, a, b, sigma, track_state)
-  local sigma2 = sigma and sigma * sigma or (track_state and track_state[10])
-    or uncertainty.noise(a.sse)
+-- tracking filter's running estimate, else the default pooled with the frame's residuals.
+-- With a prior the confidence is the filter's (`tracked`), else the single frame's.
+local function uncertain(result, alt, a, b, sigma, track_state, tracked)
+  local s2 = track_state and track_state[3]
+  local sigma2 = sigma and sigma * sigma or (s2 and s2 > 0 and s2) or uncertainty.noise(a.sse)
   local conf, _, ka, kb, d1, d2, d3, d4, d5, d6 = uncertainty.assess(a, alt and b, sigma2)
-  if alt and track_state then conf = 1 / (1 + exp(-track_state[9])) end
+  if alt and tracked then conf = tracked end
   result.confidence = conf
   uncertainty.resolve(result, a, sigma2, ka, d1, d2, d3, d4, d5, d6)
   if alt then
@@ -127,10 +143,23 @@ local function uncertain(result, alt, a, b, sigma, track_state)
   return result
 end
 
+-- A copy of a track state (one allocation for the one- and two-hypothesis states a track's
+-- first frame has).
+local function new_state(s)
+  local n = #s
+  if n == 25 then
+    return { s[1], s[2], s[3], s[4], s[5], s[6], s[7], s[8], s[9], s[10], s[11], s[12], s[13],
+      s[14], s[15], s[16], s[17], s[18], s[19], s[20], s[21], s[22], s[23], s[24], s[25] }
+  end
+  local t = {}
+  for i = 1, n do t[i] = s[i] end
+  return t
+end
+
 -- The public result of the refined method from an ordered workspace.
-local function refined_result(w, prior, into, sigma)
+local function refined_result(w, prior, into, sigma, time)
   local out_state = into and type(into.track) == "table" and into.track or state
-  local a, b = choose(w, prior, out_state)
+  local a, b, tracked = choose(w, prior, out_state, sigma, time)
   local ea = sqrt(a.sse / 4)
   if not pose.is_finite(a, ea) then
     return nil, "tagpose: no finite pose for these corners"
@@ -144,17 +173,18 @@ local function refined_result(w, prior, into, sigma)
       alt.alternative, alt.track = nil, nil
     end
   end
-  local result = pose.result(a, ea, w.iterations, w.linearisations, into)
+  local result = pose.result(a, ea, w.iterations, w.linearisations, into, true)
   if into and result.alternative and not alt then spare[into] = result.alternative end
   result.alternative = alt
   local st = result.track
   if type(st) ~= "table" then
-    result.track = { out_state[1], out_state[2], out_state[3], out_state[4], out_state[5],
-      out_state[6], out_state[7], out_state[8], out_state[9], out_state[10] }
+    result.track = new_state(out_state)
   elseif st ~= out_state then
-    for i = 1, 10 do st[i] = out_state[i] end
+    local n = #out_state
+    for i = 1, n do st[i] = out_state[i] end
+    for i = n + 1, #st do st[i] = nil end
   end
-  return uncertain(result, alt, a, b, sigma, prior and out_state)
+  return uncertain(result, alt, a, b, sigma, prior and out_state, tracked)
 end
 
 -- The public result of the report's method (one candidate, its error measured here). The
@@ -185,7 +215,10 @@ end
 -- @tparam[opt] table options
 --
 --   - `method`: `"refined"` (default) or `"seed"` (the report's method exactly);
---   - `prior`: the pose this tag had in the previous frame, for tracking (`tagpose.track`);
+--   - `prior`: the pose this tag had in the previous frame, for tracking (`tagpose.track`;
+--     `tagpose.tracker` does this for many tags);
+--   - `time`: this frame's time in seconds, for the tracking filter's motion model (default:
+--     `tagpose.track.FRAME` after the prior's frame);
 --   - `into`: a pose table from an earlier call to fill instead of allocating a new one;
 --   - `sigma`: the standard deviation of the corner noise in pixels, for `covariance` and
 --     `confidence` (default: with `prior`, the tracker's running estimate; else
@@ -212,7 +245,7 @@ function M.solve(corners, camera, tag_size, options)
   if problem then arg_error(2, problem) end
   problem = args.check_size(tag_size, "tag_size")
   if problem then arg_error(3, problem) end
-  local method, tol, max_it, prior, into, sigma = read_options(options)
+  local method, tol, max_it, prior, into, sigma, time = read_options(options)
   if not method then arg_error(4, tol) end
   if bad ~= true then return nil, "tagpose: corner " .. bad .. " is not finite" end
   local ok, why = pipeline.prepare(w, camera)
@@ -221,7 +254,7 @@ function M.solve(corners, camera, tag_size, options)
   if method == "refined" then
     ok, why = pipeline.refined(w, half, tol, max_it)
     if not ok then return nil, why end
-    return refined_result(w, prior, into, sigma)
+    return refined_result(w, prior, into, sigma, time)
   end
   ok, why = pipeline.seed(w, half, tol, max_it)
   if not ok then return nil, why end
@@ -236,5 +269,8 @@ M.layout = require("tagpose.layout")
 
 --- Calibration files: a camera from a ROS, OpenCV or Lua camera file (`tagpose.calibration`).
 M.calibration = require("tagpose.calibration")
+
+--- Many tags tracked frame by frame (`tagpose.tracker`).
+M.tracker = require("tagpose.tracker")
 
 return M

@@ -61,11 +61,27 @@ end
 -- @tparam int iterations solveQuad iterations
 -- @tparam[opt] int refine_iterations refinement linearisations (refined method)
 -- @tparam[opt] table into a pose table to fill and return instead of a new one
+-- @tparam[opt] boolean top a new table is a solve's result: it has room made, in the one
+--   allocation, for the `confidence`, `alternative` and `track` its caller sets (placeholders
+--   1, false, false)
 -- @treturn table `{position =, rotation =, quaternion =, error =, iterations =,
 --   refine_iterations =}`
-function M.result(cand, err, iterations, refine_iterations, into)
+function M.result(cand, err, iterations, refine_iterations, into, top)
   local r, w, x, y, z = cand.r, cand.qw, cand.qx, cand.qy, cand.qz
   local tx, ty, tz = cand.tx, cand.ty, cand.tz
+  if not into and top then
+    return {
+      position = { x = tx, y = ty, z = tz },
+      rotation = { { r[1], r[2], r[3] }, { r[4], r[5], r[6] }, { r[7], r[8], r[9] } },
+      quaternion = { w = w, x = x, y = y, z = z },
+      error = err,
+      iterations = iterations,
+      refine_iterations = refine_iterations,
+      confidence = 1,
+      alternative = false,
+      track = false,
+    }
+  end
   if not into then
     return {
       position = { x = tx, y = ty, z = tz },

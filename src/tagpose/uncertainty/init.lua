@@ -94,6 +94,16 @@ local function separation(r, F, sigma2, s, a1, a2, a3, nl, nt, b1, b2, b3)
   return max(sep, 0) ^ 2 / max(var, 1e-300)
 end
 
+-- The basins' part of the log-odds and the chord factors from the two separations (behind
+-- the guard of `tilted`: on LuaJIT, a side trace from that guard with all of this in it could
+-- not be compiled).
+local function shapes(sa, sb, d2a, d2b, dc)
+  local phi_a, va = model.lookup(d2a, dc)
+  local phi_b, vb = model.lookup(d2b, -dc)
+  -- the basins' shapes, and the tilt prior (uniform in angle: density ∝ 1 / sin θ)
+  return phi_a - phi_b + log(sb / sa), (va - 1) / d2a, (vb - 1) / d2b
+end
+
 -- The tilt-plane part of the log-odds and the chord factors, when both candidates are off
 -- face-on and across each other's tilt; else 0, 0, 0.
 local function tilted(a, b, Fa, Fb, sigma2, dc)
@@ -105,10 +115,7 @@ local function tilted(a, b, Fa, Fb, sigma2, dc)
     and d2b < huge) then
     return 0, 0, 0
   end
-  local phi_a, va = model.lookup(d2a, dc)
-  local phi_b, vb = model.lookup(d2b, -dc)
-  -- the basins' shapes, and the tilt prior (uniform in angle: density ∝ 1 / sin θ)
-  return phi_a - phi_b + log(sb / sa), (va - 1) / d2a, (vb - 1) / d2b
+  return shapes(sa, sb, d2a, d2b, dc)
 end
 
 --- The branch log-odds of candidate a over b and each one's chord factor (the model's extra
