@@ -19,7 +19,8 @@ local corners = {
 }
 local tag_size = 0.024 -- side of the black square, metres: the pose comes out in metres
 
-local pose, err = tagpose.solve(corners, camera, tag_size)
+-- sigma: the detector's corner noise in pixels, for the pose's covariance and confidence
+local pose, err = tagpose.solve(corners, camera, tag_size, { sigma = 0.5 })
 if not pose then
   print("no pose: " .. err)
   os.exit(1)
@@ -41,3 +42,9 @@ if alt then
   print(("alternative: quaternion w = %.4f  x = %.4f  y = %.4f  z = %.4f, error %.3f px"):format(
     a.w, a.x, a.y, a.z, alt.error))
 end
+-- how far to trust it: the probability that this is the true one of the two, and the standard
+-- deviations of the covariance (position in the tag size's unit, rotation in radians)
+local c = pose.covariance
+print(("confidence %.3f; 1σ: position %.1f %.1f %.1f mm, rotation %.1f %.1f %.1f°"):format(
+  pose.confidence, 1000 * math.sqrt(c[1][1]), 1000 * math.sqrt(c[2][2]), 1000 * math.sqrt(c[3][3]),
+  math.deg(math.sqrt(c[4][4])), math.deg(math.sqrt(c[5][5])), math.deg(math.sqrt(c[6][6]))))

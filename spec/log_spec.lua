@@ -63,9 +63,27 @@ describe("tagpose.tools.log", function()
       local pose = { position = { x = 0.5, y = -1, z = 2 },
         quaternion = { w = 1, x = 0, y = 0, z = 0 },
         error = 0.25, iterations = 3 }
-      assert.equal("4,2,0.5,-1,2,1,0,0,0,0.25,3", log.pose_line(4, 2, pose))
-      assert.equal("5,2,,,,,,,,,", log.pose_line(5, 2, nil))
+      assert.equal("4,2,0.5,-1,2,1,0,0,0,0.25,3,,,,,,,", log.pose_line(4, 2, pose))
+      assert.equal("5,2,,,,,,,,,,,,,,,,", log.pose_line(5, 2, nil))
       assert.equal(#log.POSE_COLUMNS, select(2, log.pose_line(5, 2, nil):gsub(",", "")) + 1)
+    end)
+
+    it("writes a solved pose's confidence and the standard deviations of its covariance",
+      function()
+      local tagpose = require("tagpose")
+      local camera = { fx = 883.98, fy = 883.98, cx = 319.5, cy = 239.5 }
+      local pose = assert(tagpose.solve({ { 280.3, 281.1 }, { 361.2, 279.4 }, { 358.9, 200.7 },
+        { 279.1, 199.6 } }, camera, 0.024, { sigma = 0.5 }))
+      local fields = {}
+      for f in (log.pose_line(1, 2, pose) .. ","):gmatch("([^,]*),") do fields[#fields + 1] = f end
+      assert.equal(#log.POSE_COLUMNS, #fields)
+      local column = {}
+      for i, name in ipairs(log.POSE_COLUMNS) do column[name] = tonumber(fields[i]) end
+      assert.equal(pose.confidence, column.confidence)
+      for i, name in ipairs({ "sx", "sy", "sz", "srx", "sry", "srz" }) do
+        assert.equal(math.sqrt(pose.covariance[i][i]), column[name])
+        assert.is_true(column[name] > 0)
+      end
     end)
   end)
 
@@ -81,10 +99,11 @@ describe("tagpose.tools.log", function()
       local f = assert(io.open(path, "r"))
       local text = f:read("*a")
       f:close()
-      assert.equal("frame,tag,x,y,z,qw,qx,qy,qz,error,iterations\n"
-        .. "1,3,0.5,-1,2,0.59999999999999998,0,0.80000000000000004,0,0.25,3\n"
-        .. "2,3,,,,,,,,,\n"
-        .. "2,5,0.5,-1,2,0.59999999999999998,0,0.80000000000000004,0,0.25,3\n", text)
+      assert.equal("frame,tag,x,y,z,qw,qx,qy,qz,error,iterations,confidence,sx,sy,sz,srx,sry,"
+        .. "srz\n"
+        .. "1,3,0.5,-1,2,0.59999999999999998,0,0.80000000000000004,0,0.25,3,,,,,,,\n"
+        .. "2,3,,,,,,,,,,,,,,,,\n"
+        .. "2,5,0.5,-1,2,0.59999999999999998,0,0.80000000000000004,0,0.25,3,,,,,,,\n", text)
       local back, problems = log.read_poses(path)
       os.remove(path)
       assert.same({}, problems)

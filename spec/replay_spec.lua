@@ -122,11 +122,12 @@ describe("bin/tagpose-replay", function()
     for line in text:gmatch("[^\n]+") do
       if line:match("^frame,") or line:match("^%d+,%d+,") then csv[#csv + 1] = line end
     end
-    assert.equal("frame,tag,x,y,z,qw,qx,qy,qz,error,iterations", csv[1])
+    assert.equal("frame,tag,x,y,z,qw,qx,qy,qz,error,iterations,confidence,sx,sy,sz,srx,sry,srz",
+      csv[1])
     assert.equal(5, #csv)
     assert.truthy(csv[2]:match("^1,7,[%d.e-]+,"))
-    assert.equal("4,7,,,,,,,,,", csv[3])
-    assert.equal("6,8,,,,,,,,,", csv[4])
+    assert.equal("4,7,,,,,,,,,,,,,,,,", csv[3])
+    assert.equal("6,8,,,,,,,,,,,,,,,,", csv[4])
     assert.truthy(csv[5]:match("^7,7,[%d.e-]+,"))
     -- the summary (on stderr)
     for _, expected in ipairs({

@@ -34,14 +34,15 @@ local csv_table = require("tagpose.tools.csv")
 
 local decimal = compat.decimal
 local concat = table.concat
-local floor, huge = math.floor, math.huge
+local floor, huge, sqrt = math.floor, math.huge, math.sqrt
 
 local M = {}
 
 --- Header of a corner log.
 M.CORNER_COLUMNS = { "frame", "tag", "u1", "v1", "u2", "v2", "u3", "v3", "u4", "v4" }
 --- Header of a pose log.
-M.POSE_COLUMNS = { "frame", "tag", "x", "y", "z", "qw", "qx", "qy", "qz", "error", "iterations" }
+M.POSE_COLUMNS = { "frame", "tag", "x", "y", "z", "qw", "qx", "qy", "qz", "error", "iterations",
+  "confidence", "sx", "sy", "sz", "srx", "sry", "srz" }
 --- Longest line (or quoted field across lines) read, in bytes; a longer one is reported.
 M.MAX_RECORD = 1048576
 --- Most columns a header may name.
@@ -307,17 +308,29 @@ local function num(v)
   return ("%.17g"):format(v)
 end
 
+-- the standard deviation in a covariance's diagonal entry i, or nil
+local function deviation(cov, i)
+  local row = type(cov) == "table" and cov[i]
+  local v = type(row) == "table" and row[i]
+  if type(v) == "number" and v >= 0 then return sqrt(v) end
+  return nil
+end
+
 --- One pose-log line (without newline) for a frame, a tag and a pose (or `nil` for a row that
--- failed: its pose fields are left empty).
+-- failed: its pose fields are left empty). After the pose, its `confidence` and the standard
+-- deviations of its `covariance` (position `sx, sy, sz` in the tag size's unit, rotation
+-- `srx, sry, srz` in radians, camera frame); empty when the pose has none.
 -- @tparam number frame
 -- @tparam number tag
 -- @tparam[opt] table pose a `tagpose.solve` result
 -- @treturn string
 function M.pose_line(frame, tag, pose)
-  if not pose then return num(frame) .. "," .. num(tag) .. ",,,,,,,,," end
-  local p, q = pose.position, pose.quaternion
+  if not pose then return num(frame) .. "," .. num(tag) .. ",,,,,,,,,,,,,,,," end
+  local p, q, cov = pose.position, pose.quaternion, pose.covariance
   return concat({ num(frame), num(tag), num(p.x), num(p.y), num(p.z), num(q.w), num(q.x),
-    num(q.y), num(q.z), num(pose.error), num(pose.iterations) }, ",")
+    num(q.y), num(q.z), num(pose.error), num(pose.iterations), num(pose.confidence),
+    num(deviation(cov, 1)), num(deviation(cov, 2)), num(deviation(cov, 3)),
+    num(deviation(cov, 4)), num(deviation(cov, 5)), num(deviation(cov, 6)) }, ",")
 end
 
 local Writer = {}
