@@ -13,13 +13,17 @@ dir=${1:-bench/dev/noise_0.5}
 rounds=${2:-5}
 bin=$(mktemp -d)/opencv_speed
 g++ -O2 -o "$bin" bench/opencv_speed.cpp $(pkg-config --cflags --libs opencv4)
-cv=() ; l54=() ; lj=() ; raw54=() ; rawj=()
+cv=() ; l54=() ; lj=() ; raw54=() ; rawj=() ; l54i=() ; lji=()
 for r in $(seq "$rounds"); do
   c=$("$bin" "$dir" 15 | sed -n 's/.*: \([0-9.]*\) us\/pose.*/\1/p')
-  a=$(lua5.4 examples/benchmark.lua "$dir" | sed -n 's/.*| \([0-9.]*\) µs\/pose.*/\1/p')
-  j=$(luajit examples/benchmark.lua "$dir" | sed -n 's/.*| \([0-9.]*\) µs\/pose.*/\1/p')
-  echo "round $r: opencv $c us, lua5.4 $a us, luajit $j us"
+  out54=$(lua5.4 examples/benchmark.lua "$dir"); outj=$(luajit examples/benchmark.lua "$dir")
+  a=$(echo "$out54" | sed -n 's/.*| \([0-9.]*\) µs\/pose.*/\1/p')
+  j=$(echo "$outj" | sed -n 's/.*| \([0-9.]*\) µs\/pose.*/\1/p')
+  ai=$(echo "$out54" | sed -n 's/.*(\([0-9.]*\) µs with into).*/\1/p')
+  ji=$(echo "$outj" | sed -n 's/.*(\([0-9.]*\) µs with into).*/\1/p')
+  echo "round $r: opencv $c us, lua5.4 $a us ($ai with into), luajit $j us ($ji with into)"
   cv+=("$c"); l54+=("$(awk "BEGIN {print $a / $c}")"); lj+=("$(awk "BEGIN {print $j / $c}")")
+  l54i+=("$(awk "BEGIN {print $ai / $c}")"); lji+=("$(awk "BEGIN {print $ji / $c}")")
   raw54+=("$a"); rawj+=("$j")
 done
 median() { printf '%s\n' "$@" | sort -g | awk '{v[NR]=$1} END {print (NR%2) ? v[(NR+1)/2] : (v[NR/2]+v[NR/2+1])/2}'; }
@@ -27,3 +31,4 @@ echo "medians: opencv IPPE_SQUARE $(median "${cv[@]}") us/pose, tagpose lua5.4 $
   "luajit $(median "${rawj[@]}") us/pose"
 echo "ratio to OpenCV (median of the rounds' ratios): lua5.4 $(median "${l54[@]}")x," \
   "luajit $(median "${lj[@]}")x"
+echo "with options.into (no allocation): lua5.4 $(median "${l54i[@]}")x, luajit $(median "${lji[@]}")x"
