@@ -24,7 +24,7 @@ local sqrt = math.sqrt
 local to_quaternion = rotation.to_quaternion
 
 local M = {
-  _VERSION = "tagpose 0.1.0",
+  _VERSION = "tagpose 0.2.0",
   camera = camera_model,
 }
 
