@@ -35,9 +35,13 @@ local function rotation_angle(a, b)
   return deg(2 * asin(h))
 end
 
-local function set(state, arguments, text)
+-- The result `ok`, with the failure message (callers make it only when the assertion fails:
+-- `state.mod` is false for a negated one; formatting the values costs more than the check).
+local function set(state, arguments, ok, message, ...)
+  local text = message:format(...)
   if arguments[4] then text = arguments[4] .. ": " .. text end
   state.failure_message = text
+  return ok
 end
 
 -- assert.vector_near(expected, actual, tolerance [, message]): Euclidean distance
@@ -46,8 +50,10 @@ local function vector_near(state, arguments)
   local ex, ey, ez = vec(e)
   local ax, ay, az = vec(a)
   local d = sqrt((ex - ax) ^ 2 + (ey - ay) ^ 2 + (ez - az) ^ 2)
-  set(state, arguments, ("expected %s, got %s: distance %.3g > %.3g"):format(fmt_vec(e),
-    fmt_vec(a), d, tol))
+  if (d <= tol) ~= state.mod then
+    return set(state, arguments, d <= tol, "expected %s, got %s: distance %.3g > %.3g",
+      fmt_vec(e), fmt_vec(a), d, tol)
+  end
   return d <= tol
 end
 
@@ -55,9 +61,11 @@ end
 local function rotation_near(state, arguments)
   local e, a, tol = arguments[1], arguments[2], arguments[3]
   local d = rotation_angle(e, a)
-  local fe, fa = flat(e), flat(a)
-  set(state, arguments, ("rotations differ by %.3g deg > %.3g deg\nexpected {%s}\n     got {%s}")
-    :format(d, tol, table.concat(fe, ", "), table.concat(fa, ", ")))
+  if (d <= tol) ~= state.mod then
+    return set(state, arguments, d <= tol,
+      "rotations differ by %.3g deg > %.3g deg\nexpected {%s}\n     got {%s}", d, tol,
+      table.concat(flat(e), ", "), table.concat(flat(a), ", "))
+  end
   return d <= tol
 end
 
@@ -67,8 +75,11 @@ local function quaternion_near(state, arguments)
   local dp = sqrt((e.w - a.w) ^ 2 + (e.x - a.x) ^ 2 + (e.y - a.y) ^ 2 + (e.z - a.z) ^ 2)
   local dm = sqrt((e.w + a.w) ^ 2 + (e.x + a.x) ^ 2 + (e.y + a.y) ^ 2 + (e.z + a.z) ^ 2)
   local d = dp < dm and dp or dm
-  set(state, arguments, ("expected (%.17g, %.17g, %.17g, %.17g), got (%.17g, %.17g, %.17g, %.17g):"
-    .. " distance %.3g > %.3g"):format(e.w, e.x, e.y, e.z, a.w, a.x, a.y, a.z, d, tol))
+  if (d <= tol) ~= state.mod then
+    return set(state, arguments, d <= tol, "expected (%.17g, %.17g, %.17g, %.17g), got (%.17g, "
+      .. "%.17g, %.17g, %.17g): distance %.3g > %.3g", e.w, e.x, e.y, e.z, a.w, a.x, a.y, a.z,
+      d, tol)
+  end
   return d <= tol
 end
 
