@@ -112,7 +112,9 @@ describe("tagpose.tracker", function()
     end)
 
     it("keeps its memory bounded however many ids come and go", function()
-      -- 100000 ids, each seen once (fifty a frame), among two tags seen all along
+      -- 10000 ids, each seen once (fifty a frame), among two tags seen all along: memory
+      -- measured after the first 2000 does not grow over the next 8000 (a leak of even a
+      -- number per id would show as 128 KB and more)
       local tr = tagpose.tracker.new(camera, SIZE, { max_gap = 0.1 })
       local r, t = pose_at(300, 240, 40, 0.5, 0.3)
       local r2, t2 = pose_at(100, 100, 30, 0.4, 1)
@@ -121,7 +123,7 @@ describe("tagpose.tracker", function()
       local glitch = { { x = 1, y = 1 }, { x = 2, y = 2 }, { x = 3, y = 3 }, { x = 4, y = 4 } }
       local frame, id = {}, 0
       local before
-      for f = 1, 2000 do
+      for f = 1, 200 do
         frame[1], frame[2] = keep[1], keep[2]
         for j = 3, 52 do
           id = id + 1
@@ -129,13 +131,13 @@ describe("tagpose.tracker", function()
         end
         local seen = tr:update(frame, f / 30)
         assert.equal(seen[1].track, 1)
-        if f == 200 then
+        if f == 40 then
           collectgarbage()
           collectgarbage()
           before = collectgarbage("count")
         end
       end
-      assert.equal(100000, id)
+      assert.equal(10000, id)
       -- alive: the two tags, and the glitches of the last max_gap (four frames)
       assert.is_true(tr:count() <= 2 + 4 * 50, "live tracks " .. tr:count())
       collectgarbage()
