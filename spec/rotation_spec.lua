@@ -191,4 +191,26 @@ describe("tagpose.rotation", function()
       assert.same(flat, rotation.from_nested(nested))
     end)
   end)
+
+  describe("of_pose()", function()
+    it("reads a pose's rotation, else its quaternion, and nothing else", function()
+      -- a quarter turn about z: x -> y
+      local r = { 0, -1, 0, 1, 0, 0, 0, 0, 1 }
+      local nested = rotation.to_nested(r)
+      assert.rotation_near(r, rotation.of_pose({ rotation = nested }), 1e-12)
+      local h = math.sqrt(0.5)
+      -- a quaternion of any length is normalised
+      assert.rotation_near(r, rotation.of_pose({ quaternion = { w = 2 * h, x = 0, y = 0,
+        z = 2 * h } }), 1e-12)
+      -- the rotation wins; a rotation with a NaN falls back to the quaternion
+      local q_id = { w = 1, x = 0, y = 0, z = 0 }
+      assert.rotation_near(r, rotation.of_pose({ rotation = nested, quaternion = q_id }), 1e-12)
+      assert.rotation_near({ 1, 0, 0, 0, 1, 0, 0, 0, 1 }, rotation.of_pose({
+        rotation = { { 0 / 0, 0, 0 }, { 0, 1, 0 }, { 0, 0, 1 } }, quaternion = q_id }), 1e-12)
+      for _, bad in ipairs({ {}, 5, { quaternion = { w = 0, x = 0, y = 0, z = 0 } },
+        { quaternion = { w = 1, x = 0, y = 0, z = math.huge } }, { rotation = { 1, 2, 3 } } }) do
+        assert.is_nil(rotation.of_pose(bad))
+      end
+    end)
+  end)
 end)

@@ -1,4 +1,4 @@
---- Rotations: matrix ⇄ quaternion ⇄ axis-angle, composition, orthonormalisation.
+--- Rotations: matrix ⇄ quaternion ⇄ rotation vector, composition, orthonormalisation.
 --
 -- A rotation matrix is a flat, row-major, 1-based array of nine numbers:
 -- `{r11, r12, r13, r21, r22, r23, r31, r32, r33}`. Its columns are the images of the source
@@ -10,7 +10,7 @@
 local compat = require("tagpose.compat")
 
 local sqrt, sin, cos, asin = math.sqrt, math.sin, math.cos, math.asin
-local atan2 = compat.atan2
+local atan2, is_finite = compat.atan2, compat.is_finite
 
 local M = {}
 
@@ -265,6 +265,33 @@ function M.from_nested(m, out)
   out[4], out[5], out[6] = m2[1], m2[2], m2[3]
   out[7], out[8], out[9] = m3[1], m3[2], m3[3]
   return out
+end
+
+--- The rotation a pose table carries, flat: its `rotation` (nested rows of finite numbers),
+-- else its `quaternion` (`{w =, x =, y =, z =}`, finite and not zero; normalised). What the
+-- callers that take a pose of the user's own (a tracking prior, a previous block) read.
+-- @tparam any p a pose table, or anything
+-- @tparam[opt] {number,...} out array to fill
+-- @treturn {number,...} flat 3×3 (out, or a new array)
+-- @return nil when p carries neither
+function M.of_pose(p, out)
+  if type(p) ~= "table" then return nil end
+  local m = p.rotation
+  if type(m) == "table" and type(m[1]) == "table" and type(m[2]) == "table"
+    and type(m[3]) == "table" then
+    local r = M.from_nested(m, out)
+    local ok = true
+    for k = 1, 9 do
+      if not is_finite(r[k]) then ok = false end
+    end
+    if ok then return r end
+  end
+  local q = p.quaternion
+  if type(q) == "table" and is_finite(q.w) and is_finite(q.x) and is_finite(q.y)
+    and is_finite(q.z) and q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z > 0 then
+    return M.from_quaternion(q.w, q.x, q.y, q.z, out)
+  end
+  return nil
 end
 
 return M

@@ -486,29 +486,12 @@ local prior_q, prior_alt = {}, {} -- scratch quaternions of a prior and its alte
 local prior_t, prior_alt_t = {}, {} -- and their positions
 local made = {} -- scratch: the state made from a prior without one
 
--- The quaternion of a pose table (its quaternion or rotation field) into out[1..4], or nil.
+-- The quaternion of a pose table (its rotation or quaternion field) into out[1..4], or nil.
 local function pose_quaternion(p, out)
-  if type(p) ~= "table" then return nil end
-  local qt = p.quaternion
-  if type(qt) == "table" and is_finite(qt.w) and is_finite(qt.x) and is_finite(qt.y)
-    and is_finite(qt.z) then
-    local n = sqrt(qt.w * qt.w + qt.x * qt.x + qt.y * qt.y + qt.z * qt.z)
-    if n > 0 then
-      out[1], out[2], out[3], out[4] = qt.w / n, qt.x / n, qt.y / n, qt.z / n
-      return out
-    end
-  end
-  local rt = p.rotation
-  if type(rt) == "table" and type(rt[1]) == "table" and type(rt[2]) == "table"
-    and type(rt[3]) == "table" then
-    rotation.from_nested(rt, flat)
-    for i = 1, 9 do
-      if not is_finite(flat[i]) then return nil end
-    end
-    out[1], out[2], out[3], out[4] = rotation.to_quaternion(flat)
-    return out
-  end
-  return nil
+  local r = rotation.of_pose(p, flat)
+  if not r then return nil end
+  out[1], out[2], out[3], out[4] = rotation.to_quaternion(r)
+  return out
 end
 
 -- The position {x, y, z} of a pose table into out[1..3] (in front of the camera), or nil.

@@ -78,26 +78,6 @@ local function read_faces(faces)
   return out
 end
 
--- The rotation of a previous block (its rotation, else its quaternion), flat; or nil.
-local function previous_rotation(b)
-  local r
-  local m = b.rotation
-  if type(m) == "table" and type(m[1]) == "table" and type(m[2]) == "table"
-    and type(m[3]) == "table" then
-    r = rotation.from_nested(m)
-    for k = 1, 9 do
-      if not is_finite(r[k]) then r = nil break end
-    end
-    if r then return r end
-  end
-  local q = b.quaternion
-  if type(q) == "table" and is_finite(q.w) and is_finite(q.x) and is_finite(q.y)
-    and is_finite(q.z) and q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z > 0 then
-    return rotation.from_quaternion(q.w, q.x, q.y, q.z)
-  end
-  return nil
-end
-
 -- The previous frame's blocks: an array of {position, rotation or quaternion, id, ...}.
 local function read_previous(previous)
   if type(previous) ~= "table" then
@@ -110,7 +90,7 @@ local function read_previous(previous)
     if type(p) ~= "table" or not (is_finite(p.x) and is_finite(p.y) and is_finite(p.z)) then
       return nil, "options.previous[" .. i .. "]: block with a finite position expected"
     end
-    local r = previous_rotation(b)
+    local r = rotation.of_pose(b)
     if not r then
       return nil, "options.previous[" .. i .. "]: block with a finite rotation expected"
     end
