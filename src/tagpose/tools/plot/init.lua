@@ -136,6 +136,16 @@ M.figure = figure.figure
 -- @function tracker
 M.tracker = tracks.new
 
+--- The rows of one frame by tag id (rows without a tag left out), and the ids in the order
+-- they first come: what a tracker's `assign` takes a tag at a time.
+-- @tparam {table,...} rows entries with a `tag` field
+-- @tparam[opt] int first the first row (default 1)
+-- @tparam[opt] int last the last row (default #rows)
+-- @treturn table tag → the array of its rows
+-- @treturn {any,...} the tags
+-- @function by_tag
+M.by_tag = tracks.by_tag
+
 --- A recorder of poses for a figure, fed row by row (memory bounded by `MAX_POINTS` per
 -- series, whatever the length of the log).
 -- Each series is one source's track of one tag id (`slot` tells apart the tags that share an
@@ -240,19 +250,7 @@ function M.record_entries(recorder, source, entries)
     local frame = entries[i].frame
     local j = i
     while j + 1 <= n and entries[j + 1].frame == frame do j = j + 1 end
-    local by_tag, tags = {}, {}
-    for k = i, j do
-      local e = entries[k]
-      if e.tag ~= nil then
-        local list = by_tag[e.tag]
-        if not list then
-          list = {}
-          by_tag[e.tag] = list
-          tags[#tags + 1] = e.tag
-        end
-        list[#list + 1] = e
-      end
-    end
+    local by_tag, tags = tracks.by_tag(entries, i, j)
     for _, tag in ipairs(tags) do
       local list = by_tag[tag]
       local points = {}

@@ -11,6 +11,30 @@ local is_finite = compat.is_finite
 
 local M = {}
 
+--- `tagpose.tools.plot.by_tag` (documented there).
+-- @tparam {table,...} rows
+-- @tparam[opt] int first
+-- @tparam[opt] int last
+-- @treturn table tag → its rows
+-- @treturn {any,...} the tags in the order they come
+function M.by_tag(rows, first, last)
+  local by_tag, tags = {}, {}
+  for k = first or 1, last or #rows do
+    local row = rows[k]
+    local tag = row.tag
+    if tag ~= nil then
+      local list = by_tag[tag]
+      if not list then
+        list = {}
+        by_tag[tag] = list
+        tags[#tags + 1] = tag
+      end
+      list[#list + 1] = row
+    end
+  end
+  return by_tag, tags
+end
+
 local Tracker = {}
 Tracker.__index = Tracker
 

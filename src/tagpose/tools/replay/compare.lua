@@ -77,16 +77,7 @@ end
 -- draw the rows of one frame of this log (a list of entries of the same frame)
 function Compare:draw(frame, rows)
   if not self.recorder then return end
-  local by_tag, tags = {}, {}
-  for _, e in ipairs(rows) do
-    local list = by_tag[e.tag]
-    if not list then
-      list = {}
-      by_tag[e.tag] = list
-      tags[#tags + 1] = e.tag
-    end
-    list[#list + 1] = e
-  end
+  local by_tag, tags = plot.by_tag(rows)
   for _, tag in ipairs(tags) do
     local list = by_tag[tag]
     local points = {}

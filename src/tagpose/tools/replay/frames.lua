@@ -61,21 +61,6 @@ function M.new(opt, camera, sizes, out)
     previous_frame = nil }
 end
 
--- the rows of a group by tag id, and the ids in their order
-local function by_tag_of(group)
-  local by_tag, tags = {}, {}
-  for _, row in ipairs(group) do
-    local list = by_tag[row.tag]
-    if not list then
-      list = {}
-      by_tag[row.tag] = list
-      tags[#tags + 1] = row.tag
-    end
-    list[#list + 1] = row
-  end
-  return by_tag, tags
-end
-
 -- count the rows of a tag that share their frame with another of the tag
 local function count_repeated(run, tag, list)
   local repeated = run.repeated
@@ -183,7 +168,7 @@ function M.process(run, group)
   end
   run.previous_frame = frame
   if run.counted_frame ~= frame then run.frame_counts, run.counted_frame = {}, frame end
-  local by_tag, tags = by_tag_of(group)
+  local by_tag, tags = plot.by_tag(group)
   for _, tag in ipairs(tags) do
     local list = by_tag[tag]
     count_repeated(run, tag, list)
