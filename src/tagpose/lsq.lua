@@ -29,6 +29,49 @@ local brown, fisheye, coefficients = lens_model.brown, lens_model.fisheye,
 
 local M = {}
 
+--- The (row, col) of the 21 numbers of a packed upper triangle (the order of H above), as
+-- `{a, b}` pairs.
+M.UPPER = {}
+do
+  local k = 0
+  for a = 1, 6 do
+    for b = a, 6 do
+      k = k + 1
+      M.UPPER[k] = { a, b }
+    end
+  end
+end
+
+--- The normal equations of a rigid set of points under the pose `(r, t)` into N (zeroed
+-- first), and their sum of squared residuals: `accumulate` over the points `P` (`points`,
+-- flat `x, y, z` each) seen at `px` (flat `u, v` each).
+-- @tparam {number,...} N the 27 numbers to fill
+-- @tparam table C a packed camera
+-- @tparam {number,...} r flat rotation (its first nine entries are read)
+-- @tparam number tx the translation
+-- @tparam number ty
+-- @tparam number tz
+-- @tparam {number,...} points
+-- @tparam {number,...} px
+-- @tparam int n the number of points
+-- @treturn number the sum of squared residuals (px²), or `math.huge` (N incomplete) when a
+--   point is not in front of the camera
+function M.points(N, C, r, tx, ty, tz, points, px, n)
+  local r1, r2, r3, r4, r5, r6, r7, r8, r9 = r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8], r[9]
+  for k = 1, 27 do N[k] = 0 end
+  local s = 0
+  local accumulate = M.accumulate
+  for k = 1, n do
+    local b = 3 * k
+    local a1, a2, a3 = points[b - 2], points[b - 1], points[b]
+    -- the point relative to the body origin (Y = R P), in the camera frame
+    s = s + accumulate(N, C, r1 * a1 + r2 * a2 + r3 * a3, r4 * a1 + r5 * a2 + r6 * a3,
+      r7 * a1 + r8 * a2 + r9 * a3, tx, ty, tz, px[2 * k - 1], px[2 * k])
+    if not (s < huge) then return huge end
+  end
+  return s
+end
+
 --- Lens kind of a packed camera: none (pinhole).
 M.NONE = 0
 --- Lens kind: Brown-Conrady.

@@ -24,8 +24,7 @@
 local lsq = require("tagpose.lsq")
 
 local huge = math.huge
-local accumulate, damped_step, cayley, residual = lsq.accumulate, lsq.damped_step, lsq.cayley,
-  lsq.residual
+local damped_step, cayley, residual = lsq.damped_step, lsq.cayley, lsq.residual
 
 local M = {}
 
@@ -90,24 +89,14 @@ end
 -- The normal equations of the pose Q accumulated into N (`tagpose.lsq`'s layout), and the cost
 -- (math.huge when a point is not in front of the camera).
 local function linearise(N, C, pr, Q, points, px, n)
-  local r1, r2, r3, r4, r5, r6, r7, r8, r9 = Q[1], Q[2], Q[3], Q[4], Q[5], Q[6], Q[7], Q[8], Q[9]
-  local tx, ty, tz = Q[10], Q[11], Q[12]
-  for k = 1, 27 do N[k] = 0 end
-  local s = 0
-  for k = 1, n do
-    local b = 3 * k
-    local a1, a2, a3 = points[b - 2], points[b - 1], points[b]
-    -- the point relative to the body origin (Y), in the camera frame
-    s = s + accumulate(N, C, r1 * a1 + r2 * a2 + r3 * a3, r4 * a1 + r5 * a2 + r6 * a3,
-      r7 * a1 + r8 * a2 + r9 * a3, tx, ty, tz, px[2 * k - 1], px[2 * k])
-    if not (s < huge) then return huge end
-  end
+  local s = lsq.points(N, C, Q, Q[10], Q[11], Q[12], points, px, n)
+  if not (s < huge) then return huge end
   local w = pr.axis_weight
   if w > 0 then
     -- the prior e = w·(A × u), A = R·a: ∂e/∂ω = w·(A uᵀ - (A·u) I); rows j = 1..3 of it
     local b1, b2, b3, u1, u2, u3 = pr.axis_x, pr.axis_y, pr.axis_z, pr.up_x, pr.up_y, pr.up_z
-    local A1, A2, A3 = r1 * b1 + r2 * b2 + r3 * b3, r4 * b1 + r5 * b2 + r6 * b3,
-      r7 * b1 + r8 * b2 + r9 * b3
+    local A1, A2, A3 = Q[1] * b1 + Q[2] * b2 + Q[3] * b3, Q[4] * b1 + Q[5] * b2 + Q[6] * b3,
+      Q[7] * b1 + Q[8] * b2 + Q[9] * b3
     local d = A1 * u1 + A2 * u2 + A3 * u3
     local e1, e2, e3 = w * (A2 * u3 - A3 * u2), w * (A3 * u1 - A1 * u3), w * (A1 * u2 - A2 * u1)
     s = s + e1 * e1 + e2 * e2 + e3 * e3
@@ -125,7 +114,7 @@ local function linearise(N, C, pr, Q, points, px, n)
   if v > 0 then
     -- the plane prior e = v·(n·t - d): ∂e/∂t = v·n
     local n1, n2, n3 = v * pr.normal_x, v * pr.normal_y, v * pr.normal_z
-    local e = n1 * tx + n2 * ty + n3 * tz - v * pr.level
+    local e = n1 * Q[10] + n2 * Q[11] + n3 * Q[12] - v * pr.level
     s = s + e * e
     N[16], N[17], N[18] = N[16] + n1 * n1, N[17] + n1 * n2, N[18] + n1 * n3
     N[19], N[20], N[21] = N[19] + n2 * n2, N[20] + n2 * n3, N[21] + n3 * n3

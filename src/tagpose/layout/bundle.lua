@@ -34,17 +34,7 @@ local M = {}
 
 local CX, CY = pose.CORNER_X, pose.CORNER_Y
 
--- (row, col) of a 6×6 upper triangle's entries
-local UPPER = {}
-do
-  local k = 0
-  for a = 1, 6 do
-    for b = a, 6 do
-      k = k + 1
-      UPPER[k] = { a, b }
-    end
-  end
-end
+local UPPER = lsq.UPPER
 
 --- A new problem: the camera, the frames' and tags' counts, the observations. The caller fills
 -- the arrays it returns before the first `cost`.

@@ -22,7 +22,7 @@ local lsq = require("tagpose.lsq")
 local rigid = require("tagpose.rigid")
 
 local huge = math.huge
-local accumulate = lsq.accumulate
+
 
 local M = {}
 
@@ -46,18 +46,7 @@ end
 -- @treturn number the sum of squared pixel residuals (`math.huge` when a point is not in
 --   front of the camera; N is then incomplete)
 function M.normal(camera, points, px, n, r, tx, ty, tz, N)
-  local C = constants(camera)
-  local r1, r2, r3, r4, r5, r6, r7, r8, r9 = r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8], r[9]
-  for k = 1, 27 do N[k] = 0 end
-  local s = 0
-  for k = 1, n do
-    local b = 3 * k
-    local a1, a2, a3 = points[b - 2], points[b - 1], points[b]
-    s = s + accumulate(N, C, r1 * a1 + r2 * a2 + r3 * a3, r4 * a1 + r5 * a2 + r6 * a3,
-      r7 * a1 + r8 * a2 + r9 * a3, tx, ty, tz, px[2 * k - 1], px[2 * k])
-    if not (s < huge) then return huge end
-  end
-  return s
+  return lsq.points(N, constants(camera), r, tx, ty, tz, points, px, n)
 end
 
 --- Fit the pose of a rigid set of points to their pixels, in place.

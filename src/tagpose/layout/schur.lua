@@ -13,22 +13,13 @@
 -- @module tagpose.layout.schur
 
 local linsolve = require("tagpose.linsolve")
+local lsq = require("tagpose.lsq")
 
 local sqrt = math.sqrt
 
 local M = {}
 
--- (row, col) of a 6×6 upper triangle's entries
-local UPPER = {}
-do
-  local k = 0
-  for a = 1, 6 do
-    for b = a, 6 do
-      k = k + 1
-      UPPER[k] = { a, b }
-    end
-  end
-end
+local UPPER = lsq.UPPER
 
 -- The Cholesky factor L (lower, row-major 6×6) of a damped block (upper triangle from `first`,
 -- diagonal × f) into out[o + 1 .. o + 36]; false when it is not positive definite.
