@@ -33,6 +33,9 @@
 -- Self-contained and deterministic: one SEED and options give byte-identical files on Lua
 -- 5.1-5.4 and LuaJIT (a Park-Miller generator of its own, exact in doubles; %.17g numbers).
 
+package.path = "./spec/?.lua;" .. package.path
+local layouts = require("support.layouts")
+
 local sqrt, sin, cos, log, abs = math.sqrt, math.sin, math.cos, math.log, math.abs
 local floor, pi, rad = math.floor, math.pi, math.rad
 local format, concat = string.format, table.concat
@@ -100,25 +103,11 @@ local function axis_angle(x, y, z, t)
     z * x * k - y * s, z * y * k + x * s, c + z * z * k }
 end
 
+-- unit quaternion (w >= 0) of a rotation, as four numbers (spec/support/layouts.lua's)
 local function quaternion(m)
-  local tr = m[1] + m[5] + m[9]
-  local w, x, y, z
-  if tr >= m[1] and tr >= m[5] and tr >= m[9] then
-    w = sqrt(1 + tr) / 2
-    x, y, z = (m[8] - m[6]) / (4 * w), (m[3] - m[7]) / (4 * w), (m[4] - m[2]) / (4 * w)
-  elseif m[1] >= m[5] and m[1] >= m[9] then
-    x = sqrt(1 + m[1] - m[5] - m[9]) / 2
-    w, y, z = (m[8] - m[6]) / (4 * x), (m[2] + m[4]) / (4 * x), (m[3] + m[7]) / (4 * x)
-  elseif m[5] >= m[9] then
-    y = sqrt(1 - m[1] + m[5] - m[9]) / 2
-    w, x, z = (m[3] - m[7]) / (4 * y), (m[2] + m[4]) / (4 * y), (m[6] + m[8]) / (4 * y)
-  else
-    z = sqrt(1 - m[1] - m[5] + m[9]) / 2
-    w, x, y = (m[4] - m[2]) / (4 * z), (m[3] + m[7]) / (4 * z), (m[6] + m[8]) / (4 * z)
-  end
-  if w < 0 then w, x, y, z = -w, -x, -y, -z end
-  local n = sqrt(w * w + x * x + y * y + z * z)
-  return w / n, x / n, y / n, z / n
+  local q = layouts.quaternion(m)
+  local n = sqrt(q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z)
+  return q.w / n, q.x / n, q.y / n, q.z / n
 end
 
 ---------------------------------------------------------------------------------------------
