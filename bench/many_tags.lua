@@ -10,32 +10,14 @@
 package.path = "./src/?.lua;./src/?/init.lua;./spec/?.lua;" .. package.path
 local tagpose = require("tagpose")
 local geometry = require("support.geometry")
+local crowds = require("support.crowds")
 
-local cam = { fx = 313.9, fy = 313.9, cx = 159.5, cy = 119.5 }
+local cam = crowds.CAMERA
 local sizes = {}
 for i = 1, #arg do sizes[i] = tonumber(arg[i]) end
 if #sizes == 0 then sizes = { 100, 250, 500 } end
 
-local function frame(rng, kind, n)
-  local dets = {}
-  local r0, t0 = geometry.random_pose(rng, cam, 0.024, { width = 30, u = 160, v = 120 })
-  for i = 1, n do
-    local r, t = r0, t0
-    if kind == "pile" then
-      r, t = geometry.random_pose(rng, cam, 0.024, { width = rng.uniform(20, 40),
-        u = 160 + rng.uniform(-5, 5), v = 120 + rng.uniform(-5, 5) })
-    elseif kind == "spread" then
-      r, t = geometry.random_pose(rng, cam, 0.024, { width = rng.uniform(8, 12),
-        u = rng.uniform(10, 310), v = rng.uniform(10, 230) })
-    end
-    local px = assert(geometry.project(cam, r, t, 0.024))
-    for k = 1, 4 do
-      px[k][1], px[k][2] = px[k][1] + 0.3 * rng.normal(), px[k][2] + 0.3 * rng.normal()
-    end
-    dets[i] = { id = 0, corners = px }
-  end
-  return dets
-end
+local frame = crowds.frame
 
 print(("%s: CPU seconds per frame of tagpose.block.solve (median of 3)"):format(_VERSION
   .. (rawget(_G, "jit") and " (LuaJIT)" or "")))

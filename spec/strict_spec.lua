@@ -4,6 +4,7 @@ local tagpose = require("tagpose")
 local assertions = require("support.assertions")
 local geometry = require("support.geometry")
 local run = require("support.run")
+local crowds = require("support.crowds")
 
 local camera = { fx = 700, fy = 700, cx = 639.5, cy = 359.5 }
 local corners = { { 600, 400 }, { 680, 400 }, { 680, 320 }, { 600, 320 } }
@@ -236,29 +237,11 @@ end)
 
 describe("frames of many tags", function()
   local fit = require("tagpose.block.fit")
-  local cam = { fx = 313.9, fy = 313.9, cx = 159.5, cy = 119.5 }
+  local cam = crowds.CAMERA
 
   -- n detections: piled at one place, one tag copied, or spread over the image
   local function frame(kind, n)
-    local rng = geometry.rng(99)
-    local dets = {}
-    local r0, t0 = geometry.random_pose(rng, cam, 0.024, { width = 30, u = 160, v = 120 })
-    for i = 1, n do
-      local r, t = r0, t0
-      if kind == "pile" then
-        r, t = geometry.random_pose(rng, cam, 0.024, { width = rng.uniform(20, 40),
-          u = 160 + rng.uniform(-5, 5), v = 120 + rng.uniform(-5, 5) })
-      elseif kind == "spread" then
-        r, t = geometry.random_pose(rng, cam, 0.024, { width = rng.uniform(8, 12),
-          u = rng.uniform(10, 310), v = rng.uniform(10, 230) })
-      end
-      local px = assert(geometry.project(cam, r, t, 0.024))
-      for k = 1, 4 do
-        px[k][1], px[k][2] = px[k][1] + 0.3 * rng.normal(), px[k][2] + 0.3 * rng.normal()
-      end
-      dets[i] = { id = 0, corners = px }
-    end
-    return dets
+    return crowds.frame(geometry.rng(99), kind, n)
   end
 
   it("use every detection once or skip it, with joint fits linear in their number", function()
