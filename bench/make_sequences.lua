@@ -28,8 +28,8 @@
 
 package.path = "./spec/?.lua;./src/?.lua;./src/?/init.lua;" .. package.path
 local G = require("support.geometry")
-local rotation = require("tagpose.rotation")
-local compat = require("tagpose.compat")
+local rotation = require("tagpose.core.rotation")
+local compat = require("tagpose.core.compat")
 
 local sin, cos, pi, rad, sqrt, floor = math.sin, math.cos, math.pi, math.rad,
   math.sqrt, math.floor

@@ -20,8 +20,8 @@
 
 package.path = "./spec/?.lua;./src/?.lua;./src/?/init.lua;" .. package.path
 local G = require("support.geometry")
-local rotation = require("tagpose.rotation")
-local camera_model = require("tagpose.camera")
+local rotation = require("tagpose.core.rotation")
+local camera_model = require("tagpose.core.camera")
 
 local usage = "usage: lua bench/make_tags.lua OUT_DIR KIND SEED [ROWS]"
 local out, kind, seed = arg[1], arg[2], tonumber(arg[3] or "")

@@ -23,7 +23,7 @@
 package.path = "./src/?.lua;./src/?/init.lua;./spec/?.lua;" .. package.path
 local tagpose = require("tagpose")
 local log = require("tagpose.tools.log")
-local rotation = require("tagpose.rotation")
+local rotation = require("tagpose.core.rotation")
 local geometry = require("support.geometry")
 
 local deg = math.deg

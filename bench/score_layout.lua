@@ -23,7 +23,7 @@ package.path = root .. "/src/?.lua;" .. root .. "/src/?/init.lua;" .. package.pa
 
 local tagpose = require("tagpose")
 local log = require("tagpose.tools.log")
-local rotation = require("tagpose.rotation")
+local rotation = require("tagpose.core.rotation")
 
 local sqrt, deg, floor = math.sqrt, math.deg, math.floor
 

@@ -17,7 +17,7 @@
 package.path = "./src/?.lua;./src/?/init.lua;" .. package.path
 local tagpose = require("tagpose")
 local log = require("tagpose.tools.log")
-local rotation = require("tagpose.rotation")
+local rotation = require("tagpose.core.rotation")
 
 local sqrt, abs, floor, deg = math.sqrt, math.abs, math.floor, math.deg
 

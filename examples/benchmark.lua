@@ -12,7 +12,7 @@
 package.path = "./src/?.lua;./src/?/init.lua;" .. package.path
 local tagpose = require("tagpose")
 local log = require("tagpose.tools.log")
-local solvequad = require("tagpose.solvequad")
+local solvequad = require("tagpose.core.solvequad")
 
 local args = { dir = nil, method = nil, passes = 15 }
 do

@@ -39,8 +39,8 @@
 package.path = "./src/?.lua;./src/?/init.lua;" .. package.path
 local tagpose = require("tagpose")
 local log = require("tagpose.tools.log")
-local rotation = require("tagpose.rotation")
-local cube = require("tagpose.cube")
+local rotation = require("tagpose.core.rotation")
+local cube = require("tagpose.layout.cube")
 
 local sqrt, floor, deg, huge = math.sqrt, math.floor, math.deg, math.huge
 

@@ -31,13 +31,13 @@
 package.path = "./src/?.lua;./src/?/init.lua;" .. package.path
 local tagpose = require("tagpose")
 local log = require("tagpose.tools.log")
-local rotation = require("tagpose.rotation")
+local rotation = require("tagpose.core.rotation")
 local uncertainty = require("tagpose.uncertainty")
-local refine = require("tagpose.refine")
-local cube = require("tagpose.cube")
+local refine = require("tagpose.core.refine")
+local cube = require("tagpose.layout.cube")
 
 local sqrt, abs, floor, deg = math.sqrt, math.abs, math.floor, math.deg
-local atan2 = require("tagpose.compat").atan2
+local atan2 = require("tagpose.core.compat").atan2
 
 local function usage(msg)
   io.stderr:write((msg and msg .. "\n" or "") .. "usage: lua examples/uncertainty.lua "

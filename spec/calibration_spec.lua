@@ -1,4 +1,4 @@
-local calibration = require("tagpose.calibration")
+local calibration = require("tagpose.formats.calibration")
 local tagpose = require("tagpose")
 local geometry = require("support.geometry")
 local run = require("support.run")
@@ -32,7 +32,7 @@ local function round_trip(camera, seed)
   end
 end
 
-describe("tagpose.calibration", function()
+describe("tagpose.formats.calibration", function()
   describe("read() of ROS camera_calibration YAML", function()
     it("reads ost.yaml: K, plumb_bob D, size, name, R and P", function()
       local camera, info = assert(calibration.read(FIXTURES .. "ost.yaml"))

@@ -1,4 +1,4 @@
-local camera_model = require("tagpose.camera")
+local camera_model = require("tagpose.core.camera")
 local tagpose = require("tagpose")
 local geometry = require("support.geometry")
 
@@ -23,7 +23,7 @@ local LENSES = {
   ["fisheye"] = cam({ k1 = -0.013, k2 = 0.02, k3 = -0.008, k4 = 0.001 }, "fisheye", 600),
 }
 
-describe("tagpose.camera", function()
+describe("tagpose.core.camera", function()
   describe("check()", function()
     it("accepts pinhole, Brown-Conrady and fisheye cameras", function()
       for _, c in pairs(LENSES) do assert.is_nil(camera_model.check(c)) end

@@ -1,4 +1,4 @@
-local cube = require("tagpose.cube")
+local cube = require("tagpose.layout.cube")
 local geometry = require("support.geometry")
 local assertions = require("support.assertions")
 
@@ -17,7 +17,7 @@ local function random_rotation(rng)
   return geometry.axis_angle(rng.normal(), rng.normal(), rng.normal(), rng.uniform(0, math.pi))
 end
 
-describe("tagpose.cube", function()
+describe("tagpose.layout.cube", function()
   describe("ROTATIONS", function()
     it("are the 24 distinct proper signed permutations, identity first", function()
       assert.equal(24, #cube.ROTATIONS)

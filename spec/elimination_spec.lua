@@ -1,6 +1,6 @@
 local elimination = require("support.elimination")
-local lsq = require("tagpose.lsq")
-local linsolve = require("tagpose.linsolve")
+local lsq = require("tagpose.core.lsq")
+local linsolve = require("tagpose.layout.linsolve")
 
 -- residual max |a x - b| of the original system
 local function residual(n, a, x, b, nrhs)

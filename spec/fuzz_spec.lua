@@ -9,9 +9,9 @@
 -- the counts the routes must reach scale together).
 
 local tagpose = require("tagpose")
-local camera_model = require("tagpose.camera")
-local refine = require("tagpose.refine")
-local solvequad = require("tagpose.solvequad")
+local camera_model = require("tagpose.core.camera")
+local refine = require("tagpose.core.refine")
+local solvequad = require("tagpose.core.solvequad")
 local geometry = require("support.geometry")
 
 local sqrt, huge = math.sqrt, math.huge

@@ -1,6 +1,6 @@
-local ippe = require("tagpose.ippe")
-local square = require("tagpose.square")
-local refine = require("tagpose.refine")
+local ippe = require("tagpose.core.ippe")
+local square = require("tagpose.core.square")
+local refine = require("tagpose.core.refine")
 local geometry = require("support.geometry")
 
 local cameras = {
@@ -52,7 +52,7 @@ local function check_exact(camera, r, t, s, tol, label)
   end
 end
 
-describe("tagpose.ippe", function()
+describe("tagpose.core.ippe", function()
   it("gives the exact pose and its mirror for exact corners", function()
     local rng = geometry.rng(2024)
     local n = 0

@@ -1,6 +1,6 @@
 -- tagpose.layout.read / write: Lua data files, apriltag_ros tags.yaml (and its tag frame), CSV.
 local tagpose = require("tagpose")
-local yaml = require("tagpose.yaml")
+local yaml = require("tagpose.formats.yaml")
 local geometry = require("support.geometry")
 local layouts = require("support.layouts")
 local assertions = require("support.assertions")

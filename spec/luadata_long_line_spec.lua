@@ -3,9 +3,9 @@
 -- numbers (a calibration or layout file written by a script without line breaks, 440 KB,
 -- under calibration.MAX_BYTES) took 396 s of CPU on Lua 5.4 (measured, not timed: it takes a
 -- fraction of a second now).
-local luadata = require("tagpose.luadata")
+local luadata = require("tagpose.formats.luadata")
 
-describe("tagpose.luadata", function()
+describe("tagpose.formats.luadata", function()
   describe("decode() on long lines", function()
     it("reads 50000 values on one line, and counts the lines around them", function()
       local items = {}

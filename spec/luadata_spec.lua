@@ -1,4 +1,4 @@
-local luadata = require("tagpose.luadata")
+local luadata = require("tagpose.formats.luadata")
 
 local function refused(text)
   local value, err = luadata.decode(text, "c.lua")
@@ -6,7 +6,7 @@ local function refused(text)
   return err
 end
 
-describe("tagpose.luadata", function()
+describe("tagpose.formats.luadata", function()
   describe("decode()", function()
     it("reads a table constructor of literals, with comments", function()
       local text = table.concat({

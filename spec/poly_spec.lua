@@ -1,4 +1,4 @@
-local poly = require("tagpose.poly")
+local poly = require("tagpose.core.poly")
 
 -- the polynomial with the given roots (and leading coefficient 1), constant first
 local function from_roots(roots)
@@ -11,7 +11,7 @@ local function from_roots(roots)
   return c
 end
 
-describe("tagpose.poly", function()
+describe("tagpose.core.poly", function()
   describe("roots()", function()
     it("finds the real roots of quartics", function()
       local out = {}

@@ -1,6 +1,6 @@
-local refine = require("tagpose.refine")
-local lsq = require("tagpose.lsq")
-local rotation = require("tagpose.rotation")
+local refine = require("tagpose.core.refine")
+local lsq = require("tagpose.core.lsq")
+local rotation = require("tagpose.core.rotation")
 local tagpose = require("tagpose")
 local geometry = require("support.geometry")
 
@@ -42,7 +42,7 @@ local function sse(r, t, s, px)
   return sum
 end
 
-describe("tagpose.refine", function()
+describe("tagpose.core.refine", function()
   local rng = geometry.rng(31337)
 
   describe("refine()", function()

@@ -1,5 +1,5 @@
-local rigid = require("tagpose.rigid")
-local lsq = require("tagpose.lsq")
+local rigid = require("tagpose.layout.rigid")
+local lsq = require("tagpose.core.lsq")
 local geometry = require("support.geometry")
 
 local sqrt, rad = math.sqrt, math.rad
@@ -48,7 +48,7 @@ local function perturbed(rng, r, t, angle, shift)
     t[3] + shift * rng.normal() }
 end
 
-describe("tagpose.rigid", function()
+describe("tagpose.layout.rigid", function()
   describe("fit()", function()
     for _, cam in ipairs({ camera, { fx = 600, fy = 590, cx = 321.5, cy = 238.5,
       distortion = { k1 = -0.3, k2 = 0.1, p1 = 1e-3, p2 = -5e-4 } },

@@ -2,7 +2,7 @@
 -- but the tools, the tools rock carries src/tagpose/tools/ and the commands (bin/).
 local lfs = require("lfs")
 
-local compat = require("tagpose.compat")
+local compat = require("tagpose.core.compat")
 
 local function load_rockspec(path)
   local env = {}
@@ -41,7 +41,10 @@ end
 describe("rockspec", function()
   for name in lfs.dir("rockspec") do
     local path = "rockspec/" .. name
-    if name:match("^tagpose%-tools%-.*%.rockspec$") then
+    -- a release's rockspec describes its tag's tree, not this one: only the scm rockspecs
+    -- follow src/
+    local scm = name:match("%-scm%-%d+%.rockspec$")
+    if name:match("^tagpose%-tools%-.*%.rockspec$") and scm then
       it(path .. " lists exactly the tools and installs the commands of bin/", function()
         local spec = load_rockspec(path)
         assert.equal("3.0", spec.rockspec_format)
@@ -50,7 +53,7 @@ describe("rockspec", function()
         assert.same(tools, spec.build.modules)
         assert.same(commands, spec.build.install.bin)
       end)
-    elseif name:match("%.rockspec$") then
+    elseif name:match("%.rockspec$") and scm then
       it(path .. " lists exactly the library's modules, no tools", function()
         local spec = load_rockspec(path)
         assert.equal("3.0", spec.rockspec_format)
@@ -58,6 +61,19 @@ describe("rockspec", function()
         assert.equal("builtin", spec.build.type)
         assert.same({ "lua >= 5.1" }, spec.dependencies)
         assert.same(library, spec.build.modules)
+      end)
+    end
+  end
+
+  for name in lfs.dir("rockspec") do
+    local version = name:match("^tagpose%-[%a%-]*(%d+%.%d+%.%d+)%-%d+%.rockspec$")
+    if version then
+      it("rockspec/" .. name .. " builds the tag v" .. version .. " of the same package", function()
+        local spec = load_rockspec("rockspec/" .. name)
+        assert.equal("3.0", spec.rockspec_format)
+        assert.equal(name:match("^(tagpose[%a%-]-)%-%d"), spec.package)
+        assert.equal("v" .. version, spec.source.tag)
+        assert.equal("builtin", spec.build.type)
       end)
     end
   end

@@ -1,4 +1,4 @@
-local rotation = require("tagpose.rotation")
+local rotation = require("tagpose.core.rotation")
 local geometry = require("support.geometry")
 
 local sin, cos, pi, sqrt = math.sin, math.cos, math.pi, math.sqrt
@@ -18,7 +18,7 @@ local function rx(t) return { 1, 0, 0, 0, cos(t), -sin(t), 0, sin(t), cos(t) } e
 local function ry(t) return { cos(t), 0, sin(t), 0, 1, 0, -sin(t), 0, cos(t) } end
 local function rz(t) return { cos(t), -sin(t), 0, sin(t), cos(t), 0, 0, 0, 1 } end
 
-describe("tagpose.rotation", function()
+describe("tagpose.core.rotation", function()
   describe("to_quaternion() and from_quaternion()", function()
     it("round-trip axes in every octant, at small, middle and near-half-turn angles", function()
       for sx = -1, 1, 2 do

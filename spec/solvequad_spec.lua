@@ -1,5 +1,5 @@
-local solvequad = require("tagpose.solvequad")
-local square = require("tagpose.square")
+local solvequad = require("tagpose.core.solvequad")
+local square = require("tagpose.core.square")
 
 local abs, sqrt = math.abs, math.sqrt
 
@@ -39,7 +39,7 @@ local function quadratics_of(px)
   return square.quadratics(m), square.proximate(assert(square.shape(m)))
 end
 
-describe("tagpose.solvequad", function()
+describe("tagpose.core.solvequad", function()
   -- circle X² + Y² = 1 and the line-pair quadratic X² - Y² = 0.5: roots (±√0.75, ±√0.25)
   local circle = { 1, 1, 0, 0, 0, -1, 1, -1, 0, 0, 0, -0.5 }
 

@@ -1,4 +1,4 @@
-local square = require("tagpose.square")
+local square = require("tagpose.core.square")
 local elimination = require("support.elimination")
 local report = require("support.report")
 local geometry = require("support.geometry")
@@ -23,7 +23,7 @@ local function unknowns(r, t, s)
   return { t[1], t[2], t[3], r[2] * h, r[5] * h, r[8] * h, -r[1] * h, -r[4] * h, -r[7] * h }
 end
 
-describe("tagpose.square", function()
+describe("tagpose.core.square", function()
   local rng = geometry.rng(20171201)
 
   describe("the report's camera equations (support.report)", function()

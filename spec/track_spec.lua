@@ -1,6 +1,6 @@
 local tagpose = require("tagpose")
 local track = require("tagpose.track")
-local rotation = require("tagpose.rotation")
+local rotation = require("tagpose.core.rotation")
 local geometry = require("support.geometry")
 
 local rad, deg, sin, pi = math.rad, math.deg, math.sin, math.pi
@@ -128,7 +128,7 @@ describe("tracking with options.prior", function()
       azimuth = 1.1, roll = 0.2, u = 300, v = 200, sigma = 0.5 }
     local r0, t0 = wobble(0, opts)
     local wrong = {}
-    require("tagpose.refine").mirror(r0, t0[1], t0[2], t0[3], wrong)
+    require("tagpose.core.refine").mirror(r0, t0[1], t0[2], t0[3], wrong)
     local qw = { rotation.to_quaternion(wrong) }
     local qt = { rotation.to_quaternion(r0) }
     local state = track.from_pose({}, qw, t0, qt, t0)
@@ -240,7 +240,7 @@ describe("tracking with options.prior", function()
       for _ = 1, 20 do
         local r, t = geometry.random_pose(rng, camera, SIZE, { width = 60, max_tilt = rad(70) })
         local m = {}
-        require("tagpose.refine").mirror(r, t[1], t[2], t[3], m)
+        require("tagpose.core.refine").mirror(r, t[1], t[2], t[3], m)
         local w, x, y, z = rotation.to_quaternion(r)
         local ax, ay = track.tilt(w, x, y, z, t[1], t[2], t[3])
         w, x, y, z = rotation.to_quaternion(m)
@@ -257,7 +257,7 @@ describe("tracking with options.prior", function()
     it("keeps a valid state, in place, and returns the better-supported candidate", function()
       local r, t = geometry.random_pose(geometry.rng(6), camera, SIZE, { width = 60, tilt = 0.6 })
       local m = {}
-      require("tagpose.refine").mirror(r, t[1], t[2], t[3], m)
+      require("tagpose.core.refine").mirror(r, t[1], t[2], t[3], m)
       local state = {}
       local pick, p, a, b = track.choose(nil, frame_of(r, t, m, t, 1.0, 1.2, 0), state)
       assert.equal(1, pick)
@@ -288,7 +288,7 @@ describe("tracking with options.prior", function()
     it("keeps finite states however strong or weak the evidence", function()
       local r, t = geometry.random_pose(geometry.rng(7), camera, SIZE, { width = 60, tilt = 0.6 })
       local m = {}
-      require("tagpose.refine").mirror(r, t[1], t[2], t[3], m)
+      require("tagpose.core.refine").mirror(r, t[1], t[2], t[3], m)
       local rng = geometry.rng(17)
       local state
       for k = 0, 200 do

@@ -1,5 +1,5 @@
 local tagpose = require("tagpose")
-local rotation = require("tagpose.rotation")
+local rotation = require("tagpose.core.rotation")
 local geometry = require("support.geometry")
 
 local rad, deg, pi = math.rad, math.deg, math.pi

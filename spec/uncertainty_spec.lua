@@ -5,7 +5,7 @@
 local tagpose = require("tagpose")
 local uncertainty = require("tagpose.uncertainty")
 local track = require("tagpose.track")
-local rotation = require("tagpose.rotation")
+local rotation = require("tagpose.core.rotation")
 local G = require("support.geometry")
 local assertions = require("support.assertions")
 local gauss = require("support.gauss")
@@ -243,7 +243,7 @@ describe("tagpose.uncertainty", function()
   describe("log_odds()", function()
     it("is antisymmetric and its probability the confidence solve reports", function()
       local rng = G.rng(1308)
-      local refine = require("tagpose.refine")
+      local refine = require("tagpose.core.refine")
       local s, sigma = 0.024, 0.7
       for k = 1, 20 do
         local r, t = G.random_pose(rng, CAMERA, s, { width = rng.uniform(15, 60),

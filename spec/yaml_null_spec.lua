@@ -1,12 +1,12 @@
 -- A tag with no value must be refused, not written into the shared NULL: the NULL table is one
 -- value for every document, and a tag stored in it would change how every later document
 -- reads (an empty `camera_matrix:` taken for an !!opencv-matrix).
-local yaml = require("tagpose.yaml")
-local calibration = require("tagpose.calibration")
+local yaml = require("tagpose.formats.yaml")
+local calibration = require("tagpose.formats.calibration")
 
 local NULL, TAG = yaml.NULL, yaml.TAG
 
-describe("tagpose.yaml", function()
+describe("tagpose.formats.yaml", function()
   describe("decode() of a tag on an empty value", function()
     for _, case in ipairs({
       { "a: !!opencv-matrix\n", "t.yaml:1: !!opencv-matrix tags a mapping" },

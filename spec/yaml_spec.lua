@@ -1,4 +1,4 @@
-local yaml = require("tagpose.yaml")
+local yaml = require("tagpose.formats.yaml")
 local run = require("support.run")
 
 local NULL, TAG = yaml.NULL, yaml.TAG
@@ -15,7 +15,7 @@ local function refused(text, name)
   return err
 end
 
-describe("tagpose.yaml", function()
+describe("tagpose.formats.yaml", function()
   describe("decode() on the files users have", function()
     it("reads ROS camera_calibration's ost.yaml", function()
       local doc, where = assert(yaml.decode(fixture("ost.yaml"), "ost.yaml"))

@@ -1,6 +1,6 @@
 -- Gaussian checks for the covariance specs: Cholesky, Mahalanobis², positive definiteness, and
 -- the error of a pose against the truth in the covariance's order. Not part of the library.
-local rotation = require("tagpose.rotation")
+local rotation = require("tagpose.core.rotation")
 
 local sqrt, abs, huge = math.sqrt, math.abs, math.huge
 

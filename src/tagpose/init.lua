@@ -8,16 +8,16 @@
 -- image coordinates in pixels.
 -- @module tagpose
 
-local compat = require("tagpose.compat")
-local args = require("tagpose.args")
-local camera_model = require("tagpose.camera")
-local solvequad = require("tagpose.solvequad")
-local rotation = require("tagpose.rotation")
+local compat = require("tagpose.core.compat")
+local args = require("tagpose.core.args")
+local camera_model = require("tagpose.core.camera")
+local solvequad = require("tagpose.core.solvequad")
+local rotation = require("tagpose.core.rotation")
 local track = require("tagpose.track")
-local pose = require("tagpose.pose")
-local pipeline = require("tagpose.pipeline")
+local pose = require("tagpose.core.pose")
+local pipeline = require("tagpose.core.pipeline")
 local uncertainty = require("tagpose.uncertainty")
-local refine = require("tagpose.refine")
+local refine = require("tagpose.core.refine")
 
 local is_positive, describe, is_finite = args.is_positive, args.describe, compat.is_finite
 local sqrt = math.sqrt
@@ -29,7 +29,7 @@ local M = {
 }
 
 --- solveQuad's threshold when it only starts the refined method, unless `options.tolerance`
--- says otherwise (`tagpose.pipeline.REFINED_TOLERANCE`).
+-- says otherwise (`tagpose.core.pipeline.REFINED_TOLERANCE`).
 M.REFINED_TOLERANCE = pipeline.REFINED_TOLERANCE
 
 local work = pipeline.new() -- the pipeline's workspace, reused by every solve
@@ -271,7 +271,7 @@ M.block = require("tagpose.block")
 M.layout = require("tagpose.layout")
 
 --- Calibration files: a camera from a ROS, OpenCV or Lua camera file (`tagpose.calibration`).
-M.calibration = require("tagpose.calibration")
+M.calibration = require("tagpose.formats.calibration")
 
 --- Many tags tracked frame by frame (`tagpose.tracker`).
 M.tracker = require("tagpose.tracker")

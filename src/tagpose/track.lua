@@ -51,8 +51,8 @@
 -- 2, in that frame's order).
 -- @module tagpose.track
 
-local compat = require("tagpose.compat")
-local rotation = require("tagpose.rotation")
+local compat = require("tagpose.core.compat")
+local rotation = require("tagpose.core.rotation")
 
 local sqrt, exp, log, min = math.sqrt, math.exp, math.log, math.min
 local is_finite = compat.is_finite

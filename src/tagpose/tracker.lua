@@ -24,9 +24,9 @@
 -- Times are in seconds; pixels as the camera's; lengths in the unit of the tag size.
 -- @module tagpose.tracker
 
-local args = require("tagpose.args")
-local camera_model = require("tagpose.camera")
-local compat = require("tagpose.compat")
+local args = require("tagpose.core.args")
+local camera_model = require("tagpose.core.camera")
+local compat = require("tagpose.core.compat")
 local track = require("tagpose.track")
 
 local sqrt, huge = math.sqrt, math.huge

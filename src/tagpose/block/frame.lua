@@ -17,10 +17,10 @@
 -- `default_up`.
 -- @module tagpose.block.frame
 
-local args = require("tagpose.args")
-local lsq = require("tagpose.lsq")
-local pipeline = require("tagpose.pipeline")
-local rotation = require("tagpose.rotation")
+local args = require("tagpose.core.args")
+local lsq = require("tagpose.core.lsq")
+local pipeline = require("tagpose.core.pipeline")
+local rotation = require("tagpose.core.rotation")
 
 local sqrt, abs, max = math.sqrt, math.abs, math.max
 local mul_t = rotation.multiply_transpose

@@ -14,8 +14,8 @@
 -- (pixels only) and `cost` (with the priors; `math.huge` when the fit failed).
 -- @module tagpose.block.group
 
-local rotation = require("tagpose.rotation")
-local cube = require("tagpose.cube")
+local rotation = require("tagpose.core.rotation")
+local cube = require("tagpose.layout.cube")
 
 local sqrt, abs, rad, huge = math.sqrt, math.abs, math.rad, math.huge
 local ROTATIONS, INVERSE = cube.ROTATIONS, cube.INVERSE

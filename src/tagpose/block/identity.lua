@@ -5,12 +5,12 @@
 -- equivalents, the frame nearest the previous rotation, so its orientation never jumps between
 -- equivalents. A new block takes the canonical frame: block z the face axis closest to up
 -- (the frame's up, default the camera's −y), block x the remaining face axis closest to the
--- direction from the camera to the block's centre (`tagpose.cube.canonical`).
+-- direction from the camera to the block's centre (`tagpose.layout.cube.canonical`).
 -- @module tagpose.block.identity
 
-local compat = require("tagpose.compat")
-local rotation = require("tagpose.rotation")
-local cube = require("tagpose.cube")
+local compat = require("tagpose.core.compat")
+local rotation = require("tagpose.core.rotation")
+local cube = require("tagpose.layout.cube")
 
 local sqrt = math.sqrt
 local is_finite = compat.is_finite

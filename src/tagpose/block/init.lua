@@ -2,8 +2,8 @@
 --
 -- A block is a cube of side `block_size` carrying a tag (black square of side `tag_size`) on
 -- its faces. Its frame has the origin at the cube's centre and the axes along the face normals
--- (`tagpose.cube` lists the faces and the tag frame on each). By default every face carries a
--- tag of any id, centred on the face, its z axis pointing into the block; the faces cannot be
+-- (`tagpose.layout.cube` lists the faces and the tag frame on each). By default every face carries
+-- a tag of any id, centred on the face, its z axis pointing into the block; the faces cannot be
 -- told apart, so a block's rotation is defined up to the cube's 24 symmetries and a canonical
 -- one is returned. With `options.faces` (tag id → face) the block frame is absolute.
 --
@@ -11,7 +11,7 @@
 --
 -- 1. `tagpose.block.options`: the options, read once;
 -- 2. `tagpose.block.frame`: every detection solved alone by the single-tag pipeline
---    (`tagpose.pipeline`): one or two candidate poses (the planar ambiguity), each implying a
+--    (`tagpose.core.pipeline`): one or two candidate poses (the planar ambiguity), each implying a
 --    block centre and rotation; the frame's corner noise;
 -- 3. `tagpose.block.group` and `tagpose.block.fit`: from every candidate as a seed, the free
 --    detections that agree with it form a hypothesis, fitted jointly over all its corners and
@@ -27,11 +27,11 @@
 -- Lengths are in the unit of `tag_size`, angles in radians, errors in pixels.
 -- @module tagpose.block
 
-local compat = require("tagpose.compat")
-local args = require("tagpose.args")
-local camera_model = require("tagpose.camera")
-local rotation = require("tagpose.rotation")
-local cube = require("tagpose.cube")
+local compat = require("tagpose.core.compat")
+local args = require("tagpose.core.args")
+local camera_model = require("tagpose.core.camera")
+local rotation = require("tagpose.core.rotation")
+local cube = require("tagpose.layout.cube")
 local read_options = require("tagpose.block.options").read
 local frame = require("tagpose.block.frame")
 local group = require("tagpose.block.group")

@@ -8,10 +8,10 @@
 -- noise evidence carried from the previous frame, `noise_sse` and `noise_dof` (or nil).
 -- @module tagpose.block.options
 
-local compat = require("tagpose.compat")
-local args = require("tagpose.args")
-local rotation = require("tagpose.rotation")
-local cube = require("tagpose.cube")
+local compat = require("tagpose.core.compat")
+local args = require("tagpose.core.args")
+local rotation = require("tagpose.core.rotation")
+local cube = require("tagpose.layout.cube")
 
 local is_finite, is_positive, describe = compat.is_finite, args.is_positive, args.describe
 local sqrt, rad = math.sqrt, math.rad

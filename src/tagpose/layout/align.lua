@@ -9,8 +9,8 @@
 -- Points are flat `{x1, y1, z1, x2, ...}`; the rotation comes out flat, row-major.
 -- @module tagpose.layout.align
 
-local rotation = require("tagpose.rotation")
-local lsq = require("tagpose.lsq")
+local rotation = require("tagpose.core.rotation")
+local lsq = require("tagpose.core.lsq")
 
 local sqrt, abs = math.sqrt, math.abs
 

@@ -22,9 +22,9 @@
 -- pixels 8 per observation, 6×6 blocks row-major (36) or upper triangles (21).
 -- @module tagpose.layout.bundle
 
-local lens_model = require("tagpose.lens")
-local lsq = require("tagpose.lsq")
-local pose = require("tagpose.pose")
+local lens_model = require("tagpose.core.lens")
+local lsq = require("tagpose.core.lsq")
+local pose = require("tagpose.core.pose")
 
 local huge, sqrt, log = math.huge, math.sqrt, math.log
 local brown, fisheye = lens_model.brown, lens_model.fisheye

@@ -34,9 +34,9 @@
 -- Lengths are in the layout's unit, angles in radians, residuals in pixels.
 -- @module tagpose.layout.calibrate
 
-local rotation = require("tagpose.rotation")
-local compat = require("tagpose.compat")
-local args = require("tagpose.args")
+local rotation = require("tagpose.core.rotation")
+local compat = require("tagpose.core.compat")
+local args = require("tagpose.core.args")
 local model = require("tagpose.layout.model")
 local frame = require("tagpose.layout.solve")
 local bundle = require("tagpose.layout.bundle")

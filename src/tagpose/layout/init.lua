@@ -12,17 +12,17 @@
 -- * `calibrate` gives the layout a recorded log says, from a nominal one
 --   (`tagpose.layout.calibrate`);
 -- * `read` and `write` keep layouts in files: Lua data files, apriltag_ros `tags.yaml` and CSV
---   tables (`tagpose.layout.io`);
--- * `cube` builds the nominal layout of a cube block (`tagpose.cube`'s faces).
+--   tables (`tagpose.formats.layout`);
+-- * `cube` builds the nominal layout of a cube block (`tagpose.layout.cube`'s faces).
 -- @module tagpose.layout
 
-local args = require("tagpose.args")
-local camera_model = require("tagpose.camera")
-local cube = require("tagpose.cube")
+local args = require("tagpose.core.args")
+local camera_model = require("tagpose.core.camera")
+local cube = require("tagpose.layout.cube")
 local model = require("tagpose.layout.model")
 local frame = require("tagpose.layout.solve")
 local calibration = require("tagpose.layout.calibrate")
-local io_layout = require("tagpose.layout.io")
+local io_layout = require("tagpose.formats.layout")
 
 local is_positive, describe = args.is_positive, args.describe
 
@@ -184,7 +184,7 @@ function M.write(path, layout)
   return io_layout.write(path, tags, layout.name)
 end
 
---- The nominal layout of a cube block: a centred tag on each face, as `tagpose.cube` places
+--- The nominal layout of a cube block: a centred tag on each face, as `tagpose.layout.cube` places
 -- them (tag z into the block).
 -- @tparam number tag_size side of the tags' black squares
 -- @tparam number block_size side of the cube (> tag_size)

@@ -12,9 +12,9 @@
 -- frame, `h` half the side) in the body frame, flat `{x1, y1, z1, ..., z4}`.
 -- @module tagpose.layout.model
 
-local compat = require("tagpose.compat")
-local args = require("tagpose.args")
-local rotation = require("tagpose.rotation")
+local compat = require("tagpose.core.compat")
+local args = require("tagpose.core.args")
+local rotation = require("tagpose.core.rotation")
 
 local is_finite, is_positive, describe = compat.is_finite, args.is_positive, args.describe
 local sqrt, floor = math.sqrt, math.floor

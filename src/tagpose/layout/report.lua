@@ -23,8 +23,8 @@
 -- tag's z, i.e. clockwise as the camera sees the tag), pixels for residuals.
 -- @module tagpose.layout.report
 
-local rotation = require("tagpose.rotation")
-local compat = require("tagpose.compat")
+local rotation = require("tagpose.core.rotation")
+local compat = require("tagpose.core.compat")
 
 local sqrt, max = math.sqrt, math.max
 local atan2 = compat.atan2

@@ -12,8 +12,8 @@
 -- Blocks are 6×6, row-major (36) or upper triangles (21), in the arrays of the problem.
 -- @module tagpose.layout.schur
 
-local linsolve = require("tagpose.linsolve")
-local lsq = require("tagpose.lsq")
+local linsolve = require("tagpose.layout.linsolve")
+local lsq = require("tagpose.core.lsq")
 
 local sqrt = math.sqrt
 

@@ -27,11 +27,11 @@
 -- Lengths are in the layout's unit, angles in radians, errors in pixels.
 -- @module tagpose.layout.solve
 
-local rotation = require("tagpose.rotation")
-local args = require("tagpose.args")
-local compat = require("tagpose.compat")
+local rotation = require("tagpose.core.rotation")
+local args = require("tagpose.core.args")
+local compat = require("tagpose.core.compat")
 local fit = require("tagpose.layout.fit")
-local pipeline = require("tagpose.pipeline")
+local pipeline = require("tagpose.core.pipeline")
 local uncertainty = require("tagpose.uncertainty")
 
 local sqrt, cos, huge = math.sqrt, math.cos, math.huge

@@ -23,7 +23,7 @@
 -- @module tagpose.tools.calibrate
 
 local tagpose = require("tagpose")
-local calibration = require("tagpose.calibration")
+local calibration = require("tagpose.formats.calibration")
 local log = require("tagpose.tools.log")
 
 local deg, abs = math.deg, math.abs

@@ -28,8 +28,8 @@
 -- the solve path.
 -- @module tagpose.tools.log
 
-local compat = require("tagpose.compat")
-local calibration = require("tagpose.calibration")
+local compat = require("tagpose.core.compat")
+local calibration = require("tagpose.formats.calibration")
 local csv_table = require("tagpose.tools.csv")
 
 local decimal = compat.decimal

@@ -2,10 +2,10 @@
 -- probability that it is on the true branch, from the candidates' Gauss-Newton normal equations
 -- and σ (docs/uncertainty.md derives all of it and measures it).
 --
--- A candidate is a record `{r =, tx =, ty =, tz =, sse =, normal =}` (`tagpose.pipeline`'s): `r`
--- the flat row-major rotation tag → camera, `t` the tag centre in the camera frame (tag-size
+-- A candidate is a record `{r =, tx =, ty =, tz =, sse =, normal =}` (`tagpose.core.pipeline`'s):
+-- `r` the flat row-major rotation tag → camera, `t` the tag centre in the camera frame (tag-size
 -- units), `sse` the sum of squared pixel residuals of the four corners, `normal` its normal
--- equations (H in the first 21 numbers, `tagpose.lsq`'s layout; pixels, no σ), and optionally
+-- equations (H in the first 21 numbers, `tagpose.core.lsq`'s layout; pixels, no σ), and optionally
 -- `qw, qx, qy, qz`, the rotation's unit quaternion. `sigma2` is σ² in px².
 --
 -- Covariances are nested 6×6 tables `c[i][j]`, in the order (x, y, z, rx, ry, rz): position in
@@ -24,8 +24,8 @@
 -- first read (`resolve`).
 -- @module tagpose.uncertainty
 
-local compat = require("tagpose.compat")
-local rotation = require("tagpose.rotation")
+local compat = require("tagpose.core.compat")
+local rotation = require("tagpose.core.rotation")
 local matrix = require("tagpose.uncertainty.matrix")
 local model = require("tagpose.uncertainty.model")
 

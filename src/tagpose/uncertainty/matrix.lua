@@ -1,11 +1,11 @@
 --- The 6×6 algebra of the uncertainty: the LDLᵀ factors of a pose's normal equations (their
 -- log-determinant, a quadratic form of their inverse), the inverse itself, and a covariance
 -- table filled in the contract's order. H is packed as the normal equations' first 21 numbers
--- (the upper triangle row by row, over (δω, δt), `tagpose.lsq`'s layout); nothing is
+-- (the upper triangle row by row, over (δω, δt), `tagpose.core.lsq`'s layout); nothing is
 -- allocated but a new covariance table when asked for.
 -- @module tagpose.uncertainty.matrix
 
-local compat = require("tagpose.compat")
+local compat = require("tagpose.core.compat")
 
 local log = math.log
 

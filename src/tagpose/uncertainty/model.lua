@@ -5,7 +5,7 @@
 -- its 95 % ellipsoid hold 95 % of the basin's mass (docs/uncertainty.md derives them).
 -- @module tagpose.uncertainty.model
 
-local compat = require("tagpose.compat")
+local compat = require("tagpose.core.compat")
 
 local log, abs, floor, min, max = math.log, math.abs, math.floor, math.min, math.max
 

@@ -2,8 +2,8 @@
 -- horizontal axis (see `tagpose.tools.plot.figure`, which this is).
 -- @module tagpose.tools.plot.figure
 
-local compat = require("tagpose.compat")
-local args = require("tagpose.args")
+local compat = require("tagpose.core.compat")
+local args = require("tagpose.core.args")
 local scale = require("tagpose.tools.plot.scale")
 local svg = require("tagpose.tools.plot.svg")
 

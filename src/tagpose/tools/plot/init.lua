@@ -26,8 +26,8 @@
 -- module when they are used, so that a caller may change them.
 -- @module tagpose.tools.plot
 
-local args = require("tagpose.args")
-local compat = require("tagpose.compat")
+local args = require("tagpose.core.args")
+local compat = require("tagpose.core.compat")
 local scale = require("tagpose.tools.plot.scale")
 local figure = require("tagpose.tools.plot.figure")
 local tracks = require("tagpose.tools.plot.tracker")

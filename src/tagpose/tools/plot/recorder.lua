@@ -9,7 +9,7 @@
 -- Values that are missing are NaN.
 -- @module tagpose.tools.plot.recorder
 
-local compat = require("tagpose.compat")
+local compat = require("tagpose.core.compat")
 
 local floor, deg, asin, sqrt, huge = math.floor, math.deg, math.asin, math.sqrt, math.huge
 local atan2, is_finite = compat.atan2, compat.is_finite

@@ -2,8 +2,8 @@
 -- values only) padded for the plot area.
 -- @module tagpose.tools.plot.scale
 
-local compat = require("tagpose.compat")
-local args = require("tagpose.args")
+local compat = require("tagpose.core.compat")
+local args = require("tagpose.core.args")
 
 local floor, ceil, abs, log, max = math.floor, math.ceil, math.abs, math.log, math.max
 local is_finite = compat.is_finite

@@ -8,7 +8,7 @@
 --       bottom = boolean }                       -- the lowest panel of its column
 -- @module tagpose.tools.plot.svg
 
-local compat = require("tagpose.compat")
+local compat = require("tagpose.core.compat")
 local scale = require("tagpose.tools.plot.scale")
 
 local abs, huge = math.abs, math.huge

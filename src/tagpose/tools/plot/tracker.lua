@@ -5,7 +5,7 @@
 -- `{slot =, frame =, matched =, point =, gate =}` (and whatever fields its caller keeps in it).
 -- @module tagpose.tools.plot.tracker
 
-local compat = require("tagpose.compat")
+local compat = require("tagpose.core.compat")
 
 local is_finite = compat.is_finite
 

@@ -5,7 +5,7 @@
 -- usage), `fail` (status 1: a file cannot be read or written), and `--help` (status 0).
 -- @module tagpose.tools.replay.command
 
-local compat = require("tagpose.compat")
+local compat = require("tagpose.core.compat")
 
 local huge = math.huge
 

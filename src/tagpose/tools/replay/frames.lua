@@ -20,7 +20,7 @@
 -- @module tagpose.tools.replay.frames
 
 local tagpose = require("tagpose")
-local compat = require("tagpose.compat")
+local compat = require("tagpose.core.compat")
 local plot = require("tagpose.tools.plot")
 local stats = require("tagpose.tools.replay.stats")
 

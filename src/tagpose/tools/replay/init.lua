@@ -41,7 +41,7 @@
 -- @module tagpose.tools.replay
 
 local tagpose = require("tagpose")
-local calibration = require("tagpose.calibration")
+local calibration = require("tagpose.formats.calibration")
 local log = require("tagpose.tools.log")
 local plot = require("tagpose.tools.plot")
 local command = require("tagpose.tools.replay.command")

@@ -3,7 +3,7 @@
 -- way the summary prints a number.
 -- @module tagpose.tools.replay.stats
 
-local compat = require("tagpose.compat")
+local compat = require("tagpose.core.compat")
 
 local floor, ceil, max, mlog = math.floor, math.ceil, math.max, math.log
 local is_finite = compat.is_finite

@@ -1,0 +1,207 @@
+--- The cube: its 24 rotations, its six faces, and the choice of one frame among its symmetric
+-- equivalents.
+--
+-- A block frame has its origin at the cube's centre and its axes along the face normals.
+-- Rotations are flat, row-major 3×3 arrays (see `tagpose.rotation`). The cube's rotation group
+-- is the 24 signed permutation matrices with determinant +1; when the faces cannot be told
+-- apart, the frames `R·G` for every `G` of the group are the same block.
+--
+-- The faces follow one fixed convention (that of the lab's blocks and of the dev data sets):
+-- face `f` with outward normal `n_f` carries a tag centred on it whose frame, written in the
+-- block frame, is `R_f = [tag_x tag_y tag_z]` (columns) with `tag_z = -n_f` (into the block),
+-- so `X_block = R_f·X_tag + (block_size/2)·n_f`:
+--
+-- * side faces `+x`, `-x`, `+y`, `-y`: `tag_y = -z` (the tag stands upright on an upright
+--   block), `tag_x = tag_y × tag_z`;
+-- * top `+z`: `tag_x = +x`, `tag_y = -y`; bottom `-z`: `tag_x = +x`, `tag_y = +y`.
+--
+-- Every `R_f` is one of the 24 rotations, so a tag's own rotation is itself a block frame.
+-- Conversely a tag whose rotation in the block frame is `G` (one of the 24) sits on the face
+-- with outward normal `-G·e_z`.
+-- @module tagpose.layout.cube
+
+local rotation = require("tagpose.core.rotation")
+
+local abs, min = math.abs, math.min
+
+local M = {}
+
+-- The column permutations p (row i has its entry in column p[i]) and their parities; a rotation
+-- of the cube is a permutation with signs on its rows whose product is the parity.
+local PERMUTATIONS = { { 1, 2, 3 }, { 1, 3, 2 }, { 2, 1, 3 }, { 2, 3, 1 }, { 3, 1, 2 },
+  { 3, 2, 1 } }
+local PARITY = { 1, -1, -1, 1, 1, -1 }
+
+--- The 24 rotations of the cube, flat row-major; `ROTATIONS[1]` is the identity. Constants:
+-- never write into them.
+M.ROTATIONS = {}
+
+-- BY_PATTERN[(p - 1) * 8 + bits + 1]: the index into ROTATIONS of permutation p with the rows'
+-- signs as bits 1, 2, 4 (set = negative)
+local BY_PATTERN = {}
+
+for p = 1, 6 do
+  local perm = PERMUTATIONS[p]
+  for i = 0, 1 do
+    for j = 0, 1 do
+      for k = 0, 1 do
+        local s1, s2, s3 = 1 - 2 * i, 1 - 2 * j, 1 - 2 * k
+        if s1 * s2 * s3 == PARITY[p] then
+          local g = { 0, 0, 0, 0, 0, 0, 0, 0, 0 }
+          g[perm[1]], g[3 + perm[2]], g[6 + perm[3]] = s1, s2, s3
+          M.ROTATIONS[#M.ROTATIONS + 1] = g
+          BY_PATTERN[(p - 1) * 8 + i + 2 * j + 4 * k + 1] = #M.ROTATIONS
+        end
+      end
+    end
+  end
+end
+
+local ROTATIONS = M.ROTATIONS
+
+--- The faces, by name (`"+x"`, `"-x"`, `"+y"`, `"-y"`, `"+z"`, `"-z"`): each
+-- `{normal = {x, y, z}, rotation = R_f}`, the outward normal and the tag frame in the block
+-- frame (flat), as the module's header describes. Constants.
+M.FACES = {}
+
+local function face(name, normal, r)
+  M.FACES[name] = { normal = normal, rotation = r }
+end
+
+face("+x", { 1, 0, 0 }, { 0, 0, -1, 1, 0, 0, 0, -1, 0 })
+face("-x", { -1, 0, 0 }, { 0, 0, 1, -1, 0, 0, 0, -1, 0 })
+face("+y", { 0, 1, 0 }, { -1, 0, 0, 0, 0, -1, 0, -1, 0 })
+face("-y", { 0, -1, 0 }, { 1, 0, 0, 0, 0, 1, 0, -1, 0 })
+face("+z", { 0, 0, 1 }, { 1, 0, 0, 0, -1, 0, 0, 0, -1 })
+face("-z", { 0, 0, -1 }, { 1, 0, 0, 0, 1, 0, 0, 0, 1 })
+
+local NORMAL_NAMES = { "+x", "-x", "+y", "-y", "+z", "-z" }
+
+--- `INVERSE[k]` is the index of the inverse (transpose) of `ROTATIONS[k]`.
+M.INVERSE = {}
+
+--- The cube rotation nearest to a 3×3 matrix (the one maximising `trace(Gᵀ·r)`).
+-- For each column permutation the best signs are those of the entries it picks, with the
+-- smallest entry's sign turned when they would make a reflection.
+-- @tparam {number,...} r flat 3×3
+-- @treturn int index into `ROTATIONS`
+-- @treturn number the angle between `r` and that rotation, radians (when `r` is a rotation)
+function M.nearest(r)
+  -- the best permutation (few live values: LuaJIT compiles this loop)
+  local best, score = 1, -math.huge
+  for p = 1, 6 do
+    local perm = PERMUTATIONS[p]
+    local a1, a2, a3 = r[perm[1]], r[3 + perm[2]], r[6 + perm[3]]
+    local s = abs(a1) + abs(a2) + abs(a3)
+    -- signs that make a reflection: the smallest entry's sign is turned
+    if (a1 * a2 * a3 < 0) == (PARITY[p] == 1) then
+      s = s - 2 * min(abs(a1), abs(a2), abs(a3))
+    end
+    if s > score then best, score = p, s end
+  end
+  -- its signs
+  local perm = PERMUTATIONS[best]
+  local a1, a2, a3 = r[perm[1]], r[3 + perm[2]], r[6 + perm[3]]
+  local n1, n2, n3 = a1 < 0, a2 < 0, a3 < 0
+  if (a1 * a2 * a3 < 0) == (PARITY[best] == 1) then
+    local b1, b2, b3 = abs(a1), abs(a2), abs(a3)
+    if b1 <= b2 and b1 <= b3 then
+      n1 = not n1
+    elseif b2 <= b3 then
+      n2 = not n2
+    else
+      n3 = not n3
+    end
+  end
+  local bits = (n1 and 1 or 0) + (n2 and 2 or 0) + (n3 and 4 or 0)
+  local c = 0.5 * (score - 1)
+  if c > 1 then c = 1 elseif c < -1 then c = -1 end
+  return BY_PATTERN[(best - 1) * 8 + bits + 1], math.acos(c)
+end
+
+for k, g in ipairs(ROTATIONS) do
+  M.INVERSE[k] = M.nearest({ g[1], g[4], g[7], g[2], g[5], g[8], g[3], g[6], g[9] })
+end
+
+--- Name of the face whose outward normal is `(nx, ny, nz)` (the nearest axis direction).
+-- @tparam number nx
+-- @tparam number ny
+-- @tparam number nz
+-- @treturn string `"+x"`, `"-x"`, `"+y"`, `"-y"`, `"+z"` or `"-z"`
+function M.face_name(nx, ny, nz)
+  local ax, ay, az = nx < 0 and -nx or nx, ny < 0 and -ny or ny, nz < 0 and -nz or nz
+  if ax >= ay and ax >= az then return NORMAL_NAMES[nx >= 0 and 1 or 2] end
+  if ay >= az then return NORMAL_NAMES[ny >= 0 and 3 or 4] end
+  return NORMAL_NAMES[nz >= 0 and 5 or 6]
+end
+
+--- The face a tag sits on, from its rotation `g` in the block frame: outward normal `-g·e_z`.
+-- @tparam {number,...} g flat 3×3 (a cube rotation, or near one)
+-- @treturn string face name
+function M.face_of(g)
+  return M.face_name(-g[3], -g[6], -g[9])
+end
+
+--- The symmetric equivalent `r·G` of a block rotation that is nearest to a reference rotation.
+-- @tparam {number,...} r flat block → camera rotation
+-- @tparam {number,...} ref flat reference rotation (e.g. the block's rotation last frame)
+-- @tparam {number,...} out array to fill (may be `r`; not `ref`)
+-- @treturn {number,...} out
+local relative = {} -- scratch: rᵀ·ref
+
+function M.closest(r, ref, out)
+  -- G = nearest(rᵀ·ref)
+  local g = ROTATIONS[(M.nearest(rotation.transpose_multiply(r, ref, relative)))]
+  return rotation.multiply(r, g, out)
+end
+
+--- The face axis of a block rotation nearest a direction: the column of `r` most parallel or
+-- anti-parallel to `(ux, uy, uz)` (ties go to the earlier column), unrolled.
+-- @tparam {number,...} r flat block → camera rotation
+-- @tparam number ux the direction, camera frame (need not be unit)
+-- @tparam number uy
+-- @tparam number uz
+-- @treturn int k the column (1, 2 or 3)
+-- @treturn number the column's dot product with the direction (its sign: which way it points)
+function M.nearest_axis(r, ux, uy, uz)
+  local d1 = r[1] * ux + r[4] * uy + r[7] * uz
+  local d2 = r[2] * ux + r[5] * uy + r[8] * uz
+  local d3 = r[3] * ux + r[6] * uy + r[9] * uz
+  if abs(d1) >= abs(d2) and abs(d1) >= abs(d3) then return 1, d1 end
+  if abs(d2) >= abs(d3) then return 2, d2 end
+  return 3, d3
+end
+
+--- The canonical frame among a block rotation's 24 equivalents: block z is the face axis
+-- (signed column of `r`) closest to `up`, block x the remaining face axis closest to `ahead`,
+-- y = z × x. Ties go to the earlier column and to `+` before `-`.
+-- @tparam {number,...} r flat block → camera rotation
+-- @tparam number ux up, camera frame (need not be unit)
+-- @tparam number uy
+-- @tparam number uz
+-- @tparam number ax ahead, camera frame (e.g. the direction from the camera to the block)
+-- @tparam number ay
+-- @tparam number az
+-- @tparam {number,...} out array to fill (may be `r`)
+-- @treturn {number,...} out
+function M.canonical(r, ux, uy, uz, ax, ay, az, out)
+  -- z: the column most (anti-)parallel to up
+  local kz, sz = M.nearest_axis(r, ux, uy, uz)
+  sz = sz < 0 and -1 or 1
+  -- x: of the other two, the column most (anti-)parallel to ahead
+  local kp, kq = 2, 3
+  if kz == 2 then kp = 1 elseif kz == 3 then kp, kq = 1, 2 end
+  local e1 = r[kp] * ax + r[3 + kp] * ay + r[6 + kp] * az
+  local e2 = r[kq] * ax + r[3 + kq] * ay + r[6 + kq] * az
+  local kx, sx = kp, e1
+  if abs(e2) > abs(e1) then kx, sx = kq, e2 end
+  sx = sx < 0 and -1 or 1
+  local zx, zy, zz = sz * r[kz], sz * r[3 + kz], sz * r[6 + kz]
+  local xx, xy, xz = sx * r[kx], sx * r[3 + kx], sx * r[6 + kx]
+  out[1], out[4], out[7] = xx, xy, xz
+  out[2], out[5], out[8] = zy * xz - zz * xy, zz * xx - zx * xz, zx * xy - zy * xx
+  out[3], out[6], out[9] = zx, zy, zz
+  return out
+end
+
+return M
