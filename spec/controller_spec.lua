@@ -54,13 +54,18 @@ describe("examples/controller.lua", function()
     assert.is_true(second[1].tracked)
     assert.is_true(second[2].tracked)
     assert.same({ first[1].track, first[2].track }, { second[1].track, second[2].track })
-    -- the prior is the previous step's pose: the same result as solve with it
-    local r, t = at(60 + 100 + 3, 120, 40, 3)
-    local direct = tagpose.solve(seen(1, r, t).corners, camera, SIZE,
-      { prior = second[1].pose, time = 3 / 30 })
+    -- the tracker runs the filter solve runs with options.prior: the same poses and
+    -- confidences as a chain of solves, each frame's prior the frame before's result
+    local direct
+    for k = 1, 3 do
+      local r, t = at(60 + 100 + k, 120, 40, k)
+      direct = tagpose.solve(seen(1, r, t).corners, camera, SIZE,
+        { prior = direct, time = k / 30 })
+    end
     local third = step(3, { 1 })
     assert.same(direct.position, third[1].pose.position)
-    assert.same(direct.track, third[1].pose.track)
+    assert.same(direct.quaternion, third[1].pose.quaternion)
+    assert.equal(direct.confidence, third[1].pose.confidence)
     -- tag 2 was not seen in step 3, nor 4: more than max_gap; its track is gone, a new
     -- one starts with a new id
     step(4, { 1 })

@@ -215,8 +215,8 @@ describe("strict inputs", function()
           local p = assert(tagpose.solve({ { u, v + 40 }, { u + 40, v + 41 }, { u + 41, v },
             { u + 1, v - 1 } }, cam, 0.024))
           local q = p.quaternion
-          out[#out + 1] = ("%.17g %.17g %.17g %.17g %.17g"):format(p.position.z, q.w, q.x, q.y,
-            p.track[9])
+          out[#out + 1] = ("%.17g %.17g %.17g %.17g %.17g %.17g"):format(p.position.z, q.w, q.x,
+            q.y, p.confidence, p.covariance[6][6])
         end
         print(table.concat(out, ";"))
       ]]

@@ -131,8 +131,9 @@ describe("tracking with options.prior", function()
     require("tagpose.core.refine").mirror(r0, t0[1], t0[2], t0[3], wrong)
     local qw = { rotation.to_quaternion(wrong) }
     local qt = { rotation.to_quaternion(r0) }
-    local state = track.from_pose({}, qw, t0, qt, t0)
-    state[track.HEADER + 8], state[track.HEADER + track.STRIDE + 8] = 0, -30
+    -- certain of the mirrored pose: its path has all but e⁻³⁰ of the weight
+    local state = track.from_pose(track.new_state(), qw, t0, qt, t0,
+      { first = 1 - math.exp(-30) })
     local prior = { quaternion = { w = qw[1], x = qw[2], y = qw[3], z = qw[4] }, track = state }
     local rng = geometry.rng(5)
     local first_right
@@ -164,10 +165,8 @@ describe("tracking with options.prior", function()
         local qa = { a.quaternion.w, a.quaternion.x, a.quaternion.y, a.quaternion.z }
         local qb = { b.quaternion.w, b.quaternion.x, b.quaternion.y, b.quaternion.z }
         local p = { a.position.x, a.position.y, a.position.z }
-        local state = track.from_pose({}, qa, p, qb, p)
-        state[3] = 0.09
-        state[track.HEADER + 5], state[track.HEADER + track.STRIDE + 5] = 1e-6, 1e-6
-        state[track.HEADER + 8], state[track.HEADER + track.STRIDE + 8] = 0, -40
+        local state = track.from_pose(track.new_state(), qa, p, qb, p,
+          { first = 1 - 1e-15, variance = 1e-6, sigma2 = 0.09 })
         local pose = assert(tagpose.solve(px, camera, SIZE, { prior = { quaternion =
           a.quaternion, track = state } }))
         checked = checked + 1
@@ -228,11 +227,10 @@ describe("tracking with options.prior", function()
   end)
 
   describe("tagpose.track", function()
-    local function frame_of(r, t, r2, t2, sse1, sse2, time)
-      local q1 = { rotation.to_quaternion(r) }
-      local q2 = r2 and { rotation.to_quaternion(r2) } or nil
-      return { q1 = q1, t1 = t, sse1 = sse1, q2 = q2, t2 = t2, sse2 = sse2, size = 40,
-        time = time }
+    -- a candidate record as the filter takes it: a pose and its residuals
+    local function candidate(r, t, sse)
+      local w, x, y, z = rotation.to_quaternion(r)
+      return { qw = w, qx = x, qy = y, qz = z, tx = t[1], ty = t[2], tz = t[3], sse = sse }
     end
 
     it("gives a tilt vector whose mirror is its opposite", function()
@@ -258,31 +256,35 @@ describe("tracking with options.prior", function()
       local r, t = geometry.random_pose(geometry.rng(6), camera, SIZE, { width = 60, tilt = 0.6 })
       local m = {}
       require("tagpose.core.refine").mirror(r, t[1], t[2], t[3], m)
-      local state = {}
-      local pick, p, a, b = track.choose(nil, frame_of(r, t, m, t, 1.0, 1.2, 0), state)
+      local state = track.new_state()
+      local pick, p = track.step(nil, candidate(r, t, 1.0), candidate(m, t, 1.2), 40, 0, state)
       assert.equal(1, pick)
       assert.is_true(p > 0.5 and p < 1)
-      assert.same({ 0.5, 0.5 }, { a, b })
+      assert.same({ 0.5, 0.5 }, { state.back_first, state.back_second })
       assert.is_true(track.is_state(state))
       -- the second candidate now fits much better, for many frames: it wins, and the
       -- smoothing numbers say the previous frame's choice was the second too
       for k = 1, 10 do
-        pick, p, a, b = track.choose(state, frame_of(r, t, m, t, 5.0, 0.1, k / 30), state)
+        pick, p = track.step(state, candidate(r, t, 5.0), candidate(m, t, 0.1), 40, k / 30,
+          state)
       end
       assert.equal(2, pick)
       assert.is_true(p > 0.99)
+      local a, b = state.back_first, state.back_second
       assert.is_true(a >= 0 and a <= 1 and b >= 0 and b < 0.1, ("a %.3f b %.3f"):format(a, b))
       assert.is_true(track.is_state(state))
-      assert.is_true(state[2] <= track.HYPOTHESES)
-      assert.equal(track.HEADER + state[2] * track.STRIDE, #state)
+      assert.is_true(state.count >= 1 and state.count <= track.HYPOTHESES)
       -- one candidate: it is the choice, with certainty
-      pick, p = track.choose(state, frame_of(r, t, nil, nil, 0.5, nil, 1), state)
+      pick, p = track.step(state, candidate(r, t, 0.5), nil, 40, 1, state)
       assert.same({ 1, 1 }, { pick, p })
       -- an evidence of the caller's own replaces the reprojection errors
-      local f = frame_of(r, t, m, t, 1.0, 1.0, 0)
-      f.llr = -8
-      pick = track.choose(nil, f, {})
+      pick = track.step(nil, candidate(r, t, 1.0), candidate(m, t, 1.0), 40, 0,
+        track.new_state(), -8)
       assert.equal(2, pick)
+      -- a copy is a state of its own
+      local copy = track.copy(state)
+      assert.is_true(track.is_state(copy) and copy ~= state)
+      assert.same(state.hypotheses, copy.hypotheses)
     end)
 
     it("keeps finite states however strong or weak the evidence", function()
@@ -292,14 +294,17 @@ describe("tracking with options.prior", function()
       local rng = geometry.rng(17)
       local state
       for k = 0, 200 do
-        local f = frame_of(r, t, m, t, 1, 1, k / 30)
         -- evidence from overwhelming (either way) to none, in a random order
-        f.llr = ({ 1e6, -1e6, 700, -700, 0, 1e-300, 40 })[math.floor(rng.uniform(1, 8))]
-        local out = {}
-        track.choose(state, f, out)
+        local llr = ({ 1e6, -1e6, 700, -700, 0, 1e-300, 40 })[math.floor(rng.uniform(1, 8))]
+        local out = track.new_state()
+        track.step(state, candidate(r, t, 1), candidate(m, t, 1), 40, k / 30, out, llr)
         assert(track.is_state(out), "a state after frame " .. k)
         state = out
       end
+      -- a state damaged by its holder (not a number in it) starts again, finite
+      state.hypotheses[1] = 0 / 0
+      local pick, p = track.step(state, candidate(r, t, 1), candidate(m, t, 2), 40, 10, state)
+      assert.is_true(pick == 1 and p == p and track.is_state(state))
     end)
 
     it("calibrates the confidence as a monotone map onto [0.5, 1]", function()

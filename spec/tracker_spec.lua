@@ -83,15 +83,16 @@ describe("tagpose.tracker", function()
         { id = 5, corners = { { x = 1 / 0, y = 0 }, good.corners[2], good.corners[3],
           good.corners[4] } } }, 0)
       assert.equal(9, #seen)
-      assert.equal(7, seen.skipped)
-      for i = 1, 7 do
+      assert.equal(8, seen.skipped)
+      for _, i in ipairs({ 1, 2, 3, 4, 5, 6, 7, 9 }) do
         assert.is_nil(seen[i].pose)
         assert.is_string(seen[i].reason)
         assert.equal(i, seen[i].index)
       end
       assert.equal("tracker: no tag size for id 9", seen[7].reason)
       assert.vector_near(t, seen[8].pose.position, 1e-9)
-      assert.equal("tagpose: corner 1 is not finite", seen[9].reason)
+      assert.equal("tracker: entry 9: corner 1 is not finite", seen[9].reason)
+      assert.is_nil(seen[9].track)
     end)
 
     it("refuses what it cannot use at its entry points", function()
@@ -103,7 +104,7 @@ describe("tagpose.tracker", function()
       assert.has_error(function() tagpose.tracker.new(camera, { default = 0 }) end,
         "bad argument #2 to 'new' (tag_size[default]: positive number expected, got number 0)")
       assert.has_error(function() tagpose.tracker.new(camera, SIZE, { maxgap = 1 }) end,
-        "bad argument #3 to 'new' (unknown option 'maxgap')")
+        "bad argument #3 to 'new' (options.maxgap: unknown key (did you mean 'max_gap'?))")
       local tr = tagpose.tracker.new(camera, SIZE)
       assert.has_error(function() tr:update(42) end,
         "bad argument #1 to 'update' (array of detections expected, got number)")

@@ -228,7 +228,7 @@ describe("tagpose.uncertainty", function()
           prior = prior }))
         if prior.alternative and k > 1 then
           -- the state's posterior of the frame's first candidate by error, calibrated
-          local p_first = prior.track[5]
+          local p_first = prior.track.first
           local first = prior.error <= prior.alternative.error
           local expected = track.confidence(first and p_first or 1 - p_first)
           assert.is_true(abs(prior.confidence - expected) < 1e-12)

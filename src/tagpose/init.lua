@@ -13,10 +13,9 @@ local args = require("tagpose.core.args")
 local camera_model = require("tagpose.core.camera")
 local solvequad = require("tagpose.core.solvequad")
 local rotation = require("tagpose.core.rotation")
-local track = require("tagpose.track")
 local pose = require("tagpose.core.pose")
 local pipeline = require("tagpose.core.pipeline")
-local uncertainty = require("tagpose.uncertainty")
+local result = require("tagpose.core.result")
 local refine = require("tagpose.core.refine")
 
 local is_positive, describe, is_finite = args.is_positive, args.describe, compat.is_finite
@@ -24,20 +23,35 @@ local sqrt = math.sqrt
 local to_quaternion = rotation.to_quaternion
 
 local M = {
-  _VERSION = "tagpose 0.2.0",
+  _VERSION = "tagpose 0.3.0",
   camera = camera_model,
+  rotation = rotation,
 }
 
 --- solveQuad's threshold when it only starts the refined method, unless `options.tolerance`
 -- says otherwise (`tagpose.core.pipeline.REFINED_TOLERANCE`).
 M.REFINED_TOLERANCE = pipeline.REFINED_TOLERANCE
 
+-- The fields loaded when first used: a robot that only solves never loads them.
+local ON_DEMAND = {
+  block = "tagpose.block",
+  layout = "tagpose.layout",
+  tracker = "tagpose.tracker",
+  calibration = "tagpose.formats.calibration",
+}
+
+setmetatable(M, {
+  __index = function(t, key)
+    local name = ON_DEMAND[key]
+    if not name then return nil end
+    local module = require(name)
+    rawset(t, key, module)
+    return module
+  end,
+})
+
 local work = pipeline.new() -- the pipeline's workspace, reused by every solve
-local state = {} -- tracking state of this frame, when the result has none to fill
-local qa, qb = {}, {} -- the candidates' quaternions, as the tracking filter takes them
-local ta, tb = {}, {} -- and their positions
-local frame = { q1 = qa, t1 = ta, q2 = qb, t2 = tb } -- the frame as the filter reads it
-local spare = setmetatable({}, { __mode = "k" }) -- into -> an alternative table to reuse
+local track -- tagpose.track, loaded with the first prior
 
 -- the options solve takes
 local OPTIONS = { "method", "prior", "into", "tolerance", "max_iterations", "sigma", "time" }
@@ -73,6 +87,7 @@ local function read_options(options)
     if type(prior) ~= "table" then
       return nil, "options.prior: pose table expected, got " .. type(prior)
     end
+    track = track or require("tagpose.track")
     prior = track.from_prior(prior)
     if not prior then
       return nil, "options.prior: pose with a finite quaternion or rotation expected"
@@ -105,108 +120,65 @@ local function side(px)
     + sqrt((u4 - u3) ^ 2 + (v4 - v3) ^ 2) + sqrt((u1 - u4) ^ 2 + (v1 - v4) ^ 2))
 end
 
--- Which candidate of an ordered workspace is the pose: the first (the smaller error), or the
--- tracking filter's choice given the prior's state (`tagpose.track`); the track state of this
--- frame goes into `out`. Returns the pose's candidate, the other (nil when there is no second
--- minimum) and, with a prior, the filter's calibrated confidence in the pose.
-local function choose(w, prior, out, time)
-  local a, b = w.first, w.second
-  local has2 = w.count == 2
-  qa[1], qa[2], qa[3], qa[4] = a.qw, a.qx, a.qy, a.qz
-  ta[1], ta[2], ta[3] = a.tx, a.ty, a.tz
-  qb[1], qb[2], qb[3], qb[4] = b.qw, b.qx, b.qy, b.qz
-  tb[1], tb[2], tb[3] = b.tx, b.ty, b.tz
-  local f = frame
-  f.q2, f.sse1, f.sse2 = has2 and qb or nil, a.sse, b.sse
-  -- (the filter keeps its own running estimate of σ² even when options.sigma is given: its
-  -- confidence map was fitted so, and given σ its confidence was measured less calibrated,
-  -- ECE 0.055 against 0.027 on the dev sequences)
-  f.size, f.time = side(w.px), time
-  local pick, p = track.choose(prior, f, out)
-  if not has2 then return a, nil, nil end
-  if pick == 2 and prior then a, b = b, a end
-  return a, b, prior and track.confidence(p) or nil
+local spare_state = setmetatable({}, { __mode = "k" }) -- into -> a state to fill next
+
+-- The state record a tracked solve fills: into's own (the prior's, when into is the prior, is
+-- kept for the next frame while a spare is filled), or a new one.
+local function state_into(into, prior)
+  if not into then return track.new_state() end
+  local current = rawget(into, "track")
+  if track.is_state(current) and current ~= prior then return current end
+  local state = spare_state[into]
+  if not state or state == prior then state = track.new_state() end
+  if track.is_state(current) then spare_state[into] = current end
+  return state
 end
 
--- The branch confidence of a result and its alternative (their candidates a and b), and their
--- covariances, made when first read (`tagpose.uncertainty`). σ²: options.sigma, else the
--- tracking filter's running estimate, else the default pooled with the frame's residuals.
--- With a prior the confidence is the filter's (`tracked`), else the single frame's.
-local function uncertain(result, alt, a, b, sigma, track_state, tracked)
-  local s2 = track_state and track_state[3]
-  local sigma2 = sigma and sigma * sigma or (s2 and s2 > 0 and s2) or uncertainty.noise(a.sse)
-  local conf, _, ka, kb, d1, d2, d3, d4, d5, d6 = uncertainty.assess(a, alt and b, sigma2)
-  if alt and tracked then conf = tracked end
-  result.confidence = conf
-  uncertainty.resolve(result, a, sigma2, ka, d1, d2, d3, d4, d5, d6)
-  if alt then
-    alt.confidence = 1 - conf
-    uncertainty.resolve(alt, b, sigma2, kb, -d1, -d2, -d3, -d4, -d5, -d6)
-  end
-  return result
-end
-
--- A copy of a track state (one allocation for the one- and two-hypothesis states a track's
--- first frame has).
-local function new_state(s)
-  local n = #s
-  if n == 25 then
-    return { s[1], s[2], s[3], s[4], s[5], s[6], s[7], s[8], s[9], s[10], s[11], s[12], s[13],
-      s[14], s[15], s[16], s[17], s[18], s[19], s[20], s[21], s[22], s[23], s[24], s[25] }
-  end
-  local t = {}
-  for i = 1, n do t[i] = s[i] end
-  return t
-end
-
--- The public result of the refined method from an ordered workspace.
-local function refined_result(w, prior, into, sigma, time)
-  local out_state = into and type(into.track) == "table" and into.track or state
-  local a, b, tracked = choose(w, prior, out_state, time)
+-- The result of the refined method from an ordered workspace: the better fit, or with a prior
+-- the tracking filter's choice (`tagpose.track`), whose state goes into the result's `track`.
+local function refined_result(w, camera, half, prior, into, sigma, time)
+  local a, b = w.first, w.count == 2 and w.second or nil
   local ea = sqrt(a.sse / 4)
   if not pose.is_finite(a, ea) then
     return nil, "tagpose: no finite pose for these corners"
   end
-  local alt = nil
+  local eb
   if b then
-    local eb = sqrt(b.sse / 4)
-    if pose.is_finite(b, eb) then
-      alt = pose.result(b, eb, w.iterations, b.linearisations, into and (into.alternative
-        or spare[into]))
-      alt.alternative, alt.track = nil, nil
-    end
+    eb = sqrt(b.sse / 4)
+    if not pose.is_finite(b, eb) then b = nil end
   end
-  local result = pose.result(a, ea, w.iterations, w.linearisations, into, true)
-  if into and result.alternative and not alt then spare[into] = result.alternative end
-  result.alternative = alt
-  local st = result.track
-  if type(st) ~= "table" then
-    result.track = new_state(out_state)
-  elseif st ~= out_state then
-    local n = #out_state
-    for i = 1, n do st[i] = out_state[i] end
-    for i = n + 1, #st do st[i] = nil end
+  local size = side(w.px)
+  local sigma2 = sigma and sigma * sigma or nil
+  if not prior then
+    return result.new(a, ea, b, eb, w.iterations, w.linearisations, b and b.linearisations,
+      camera, half, sigma2, size, time, into)
   end
-  return uncertain(result, alt, a, b, sigma, prior and out_state, tracked)
+  local state = state_into(into, prior)
+  local pick, p = track.step(prior, a, b, size, time, state)
+  if pick == 2 then a, b, ea, eb = b, a, eb, ea end
+  -- (the filter keeps its own running estimate of σ² even when options.sigma is given: its
+  -- confidence map was fitted so, and given σ its confidence was measured less calibrated,
+  -- ECE 0.055 against 0.027 on the dev sequences; σ, or that estimate, sets the covariance)
+  local r = result.new(a, ea, b, eb, w.iterations, w.linearisations, b and b.linearisations,
+    camera, half, sigma2 or state.sigma2, size, time, into)
+  if b then result.set_confidence(r, track.confidence(p)) end
+  r.track = state
+  return r
 end
 
--- The public result of the report's method (one candidate, its error measured here). The
--- report's pose is not a least-squares minimum and its method does not look at the other: its
+-- The result of the report's method (one candidate, its error measured here). The report's
+-- pose is not a least-squares minimum and its method does not look at the other: its
 -- covariance is σ² H⁻¹ at it, its confidence 1.
-local function seed_result(w, camera, half, into, sigma)
+local function seed_result(w, camera, half, into, sigma, time)
   local a = w.first
   a.qw, a.qx, a.qy, a.qz = to_quaternion(a.r)
   local err = pose.reprojection_error(w.C, a.r, a.tx, a.ty, a.tz, half, w.px)
   if not pose.is_finite(a, err) then
     return nil, "tagpose: no finite pose for these corners"
   end
-  local result = pose.result(a, err, w.iterations, nil, into)
-  if into then into.alternative, into.track = nil, nil end
   a.sse = refine.normal(camera, w.px, half, a.r, a.tx, a.ty, a.tz, a.normal)
-  result.confidence = 1
-  uncertainty.resolve(result, a, sigma and sigma * sigma or uncertainty.noise(a.sse), 0, 0, 0,
-    0, 0, 0, 0)
-  return result
+  return result.new(a, err, nil, nil, w.iterations, nil, nil, camera, half,
+    sigma and sigma * sigma or nil, side(w.px), time, into)
 end
 
 --- Solve the pose of one tag.
@@ -257,23 +229,11 @@ function M.solve(corners, camera, tag_size, options)
   if method == "refined" then
     ok, why = pipeline.refined(w, half, tol, max_it)
     if not ok then return nil, why end
-    return refined_result(w, prior, into, sigma, time)
+    return refined_result(w, camera, half, prior, into, sigma, time)
   end
   ok, why = pipeline.seed(w, half, tol, max_it)
   if not ok then return nil, why end
-  return seed_result(w, camera, half, into, sigma)
+  return seed_result(w, camera, half, into, sigma, time)
 end
-
---- Blocks: cubes carrying a tag on each face (`tagpose.block`).
-M.block = require("tagpose.block")
-
---- Layouts: rigid sets of tags of any shape (`tagpose.layout`).
-M.layout = require("tagpose.layout")
-
---- Calibration files: a camera from a ROS, OpenCV or Lua camera file (`tagpose.calibration`).
-M.calibration = require("tagpose.formats.calibration")
-
---- Many tags tracked frame by frame (`tagpose.tracker`).
-M.tracker = require("tagpose.tracker")
 
 return M

@@ -47,12 +47,13 @@ local tag_cov -- scratch: a tag's covariance before it is moved (made on first u
 local function fitted_covariance(fr, h, sigma2)
   local cost = fit.normal(fr, h, normal)
   if not (cost < huge) then return nil end
-  return uncertainty.from_normal(normal, sigma2, 0, 0, 0, 0, 0, 0, 0)
+  return uncertainty.from_normal(normal, sigma2, 0)
 end
 
--- A one-face block's covariance from its tag's candidate a, the chord factor k and chord d.
-local function tag_covariance(a, sigma2, k, d1, d2, d3, d4, d5, d6)
-  local C = uncertainty.from_normal(a.tag.normal, sigma2, k, d1, d2, d3, d4, d5, d6, tag_cov)
+-- A one-face block's covariance from its tag's candidate a (assessed: its chord factor and
+-- chord set).
+local function tag_covariance(a, sigma2)
+  local C = uncertainty.covariance(a.tag, sigma2, tag_cov)
   tag_cov = C
   return uncertainty.move(C, a.x - a.tag.tx, a.y - a.tag.ty, a.z - a.tag.tz)
 end
@@ -81,13 +82,12 @@ function M.attach(fr, f, b, sigma2)
   -- a tag alone: its candidates' branch probability and covariances
   local ca = fr.dets[h.members[1]].cands[h.cands[1]]
   local cb = o and fr.dets[o.members[1]].cands[o.cands[1]]
-  local conf, _, ka, kb, d1, d2, d3, d4, d5, d6 = uncertainty.assess(ca.tag, cb and cb.tag,
-    sigma2)
-  b.covariance = tag_covariance(ca, sigma2, ka, d1, d2, d3, d4, d5, d6)
-  b.confidence = conf
+  uncertainty.assess(ca.tag, cb and cb.tag, sigma2)
+  b.covariance = tag_covariance(ca, sigma2)
+  b.confidence = ca.tag.confidence
   if cb and a then
-    a.covariance = tag_covariance(cb, sigma2, kb, -d1, -d2, -d3, -d4, -d5, -d6)
-    a.confidence = 1 - conf
+    a.covariance = tag_covariance(cb, sigma2)
+    a.confidence = cb.tag.confidence
   end
 end
 

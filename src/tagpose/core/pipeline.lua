@@ -20,10 +20,10 @@
 -- caller), the normalised corners `m`, the proximate depths, the quadratics' coefficients, the
 -- packed camera `C`, and two candidate records `first` and `second`:
 -- `{r = flat rotation (row-major, tag → camera), tx, ty, tz, sse, linearisations,
--- qw, qx, qy, qz, normal}` — the pose, its sum of squared pixel residuals over the corners
--- (math.huge where its start led nowhere), the linearisations spent on it, its quaternion, and
--- the normal equations of its last linearisation (`tagpose.core.lsq`'s layout: for the
--- uncertainty).
+-- qw, qx, qy, qz, normal, confidence, k, chord}` — the pose, its sum of squared pixel residuals
+-- over the corners (math.huge where its start led nowhere), the linearisations spent on it, its
+-- quaternion, the normal equations of its last linearisation (`tagpose.core.lsq`'s layout), and
+-- the uncertainty's record of it (`tagpose.uncertainty.assess` fills the last three).
 -- @module tagpose.core.pipeline
 
 local camera_model = require("tagpose.core.camera")
@@ -49,7 +49,8 @@ M.REFINED_TOLERANCE = 1e-7
 -- @treturn table
 function M.candidate()
   return { r = { 1, 0, 0, 0, 1, 0, 0, 0, 1 }, tx = 0, ty = 0, tz = 0, sse = huge,
-    linearisations = 0, qw = 1, qx = 0, qy = 0, qz = 0, normal = {} }
+    linearisations = 0, qw = 1, qx = 0, qy = 0, qz = 0, normal = {}, confidence = 1, k = 0,
+    chord = { 0, 0, 0, 0, 0, 0 } }
 end
 
 --- A workspace: the pipeline's scratch and its two candidates (see the module's header).

@@ -232,22 +232,22 @@ end
 local function uncertain(n, body, alt, a, b, s2)
   if n == 1 then
     local ta, tb = a.tag, b and b.tag
-    local conf, _, ka, kb, d1, d2, d3, d4, d5, d6 = uncertainty.assess(ta, tb, s2)
-    body.covariance = uncertainty.move(uncertainty.from_normal(ta.normal, s2, ka, d1, d2, d3,
-      d4, d5, d6), a.x - ta.tx, a.y - ta.ty, a.z - ta.tz)
-    body.confidence = conf
+    uncertainty.assess(ta, tb, s2)
+    body.covariance = uncertainty.move(uncertainty.covariance(ta, s2), a.x - ta.tx,
+      a.y - ta.ty, a.z - ta.tz)
+    body.confidence = ta.confidence
     if b then
-      alt.covariance = uncertainty.move(uncertainty.from_normal(tb.normal, s2, kb, -d1, -d2,
-        -d3, -d4, -d5, -d6), b.x - tb.tx, b.y - tb.ty, b.z - tb.tz)
-      alt.confidence = 1 - conf
+      alt.covariance = uncertainty.move(uncertainty.covariance(tb, s2), b.x - tb.tx,
+        b.y - tb.ty, b.z - tb.tz)
+      alt.confidence = tb.confidence
     end
     return
   end
   local ld_a, ld_b
-  body.covariance, ld_a = uncertainty.from_normal(a.normal, s2, 0, 0, 0, 0, 0, 0, 0)
+  body.covariance, ld_a = uncertainty.from_normal(a.normal, s2, 0)
   body.confidence = 1
   if b then
-    alt.covariance, ld_b = uncertainty.from_normal(b.normal, s2, 0, 0, 0, 0, 0, 0, 0)
+    alt.covariance, ld_b = uncertainty.from_normal(b.normal, s2, 0)
     body.confidence = uncertainty.probability((b.sse - a.sse) / (2 * s2) + 0.5 * (ld_b - ld_a))
     alt.confidence = 1 - body.confidence
   end

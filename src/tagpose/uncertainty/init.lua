@@ -212,65 +212,61 @@ local chord = M.chord
 -- @tparam {number,...} N the normal equations (H in the first 21 numbers)
 -- @tparam number sigma2 σ² (px²)
 -- @tparam number k the chord's factor (0: none)
--- @tparam number d1 the chord, (δω, δt)
--- @tparam number d2
--- @tparam number d3
--- @tparam number d4
--- @tparam number d5
--- @tparam number d6
+-- @tparam ?{number,...} d the chord, (δω, δt) (nil when k is 0)
 -- @tparam[opt] table out nested 6×6 to fill (nil: a new one)
 -- @treturn table the covariance
 -- @treturn number ln det H (pivots below 1e-12 of their diagonal raised to it)
-function M.from_normal(N, sigma2, k, d1, d2, d3, d4, d5, d6, out)
+function M.from_normal(N, sigma2, k, d, out)
   local ld = factor(N, factors_a)
-  return fill(out, inverse(factors_a, packed), sigma2, k, d1, d2, d3, d4, d5, d6), ld
+  if k == 0 or not d then
+    return fill(out, inverse(factors_a, packed), sigma2, 0, 0, 0, 0, 0, 0, 0), ld
+  end
+  return fill(out, inverse(factors_a, packed), sigma2, k, d[1], d[2], d[3], d[4], d[5], d[6]), ld
 end
 
---- The textbook covariance of one candidate, σ² H⁻¹ (no ambiguity correction): for a pose that
--- is the only minimum.
--- @tparam table c a candidate record
+--- The covariance of a candidate: `σ² H⁻¹` and, when `assess` found the candidate to be one of
+-- two minima of the planar ambiguity, the rank-one term along its chord to the other
+-- (`c.k`, `c.chord`).
+-- @tparam table c a candidate record (`normal`; optionally `k` and `chord` from `assess`)
 -- @tparam number sigma2 σ² (px²)
 -- @tparam[opt] table out nested 6×6 to fill (nil: a new one)
 -- @treturn table the covariance
 -- @treturn number ln det H
 function M.covariance(c, sigma2, out)
-  return M.from_normal(c.normal, sigma2, 0, 0, 0, 0, 0, 0, 0, out)
+  return M.from_normal(c.normal, sigma2, c.k or 0, c.chord, out)
 end
 
---- The probability that a is on the true branch, and what each candidate's covariance needs
--- beyond its H: the chord factors and the chord.
--- @tparam table a a candidate record
--- @tparam[opt] table b the other minimum of the planar ambiguity (nil: a is the only one)
--- @tparam number sigma2 σ² (px²)
--- @treturn number a's confidence, in [0, 1] (b's is its complement)
--- @treturn number the untempered log-odds (`math.huge` without b)
--- @treturn number a's chord factor
--- @treturn number b's chord factor
--- @treturn number the chord from a to b, six numbers (zero without b)
-function M.assess(a, b, sigma2)
-  if not b then return 1, huge, 0, 0, 0, 0, 0, 0, 0, 0 end
-  local L, ka, kb = analyse(a, b, sigma2)
-  local d1, d2, d3, d4, d5, d6 = 0, 0, 0, 0, 0, 0
-  if ka ~= 0 or kb ~= 0 then d1, d2, d3, d4, d5, d6 = chord(a, b) end
-  return M.probability(L), L, ka, kb, d1, d2, d3, d4, d5, d6
-end
-
---- Both candidates' covariances and the probability that a is on the true branch, at once.
--- With `b` nil, a is the only minimum: its covariance is σ² H⁻¹ and its confidence 1.
+--- The branch analysis of two candidates, into their records: each one's `confidence` (the
+-- probability that it is on the true branch; they sum to one), its chord factor `k` and its
+-- `chord` to the other (six numbers, (δω, δt); an array made when the record has none). With
+-- `b` nil, a is the only minimum: confidence 1, k 0.
 -- @tparam table a a candidate record
 -- @tparam[opt] table b the other minimum of the planar ambiguity
 -- @tparam number sigma2 σ² (px²)
--- @tparam[opt] table cov_a nested 6×6 to fill with a's covariance (nil: a new one)
--- @tparam[opt] table cov_b the same for b's
--- @treturn number a's confidence, in [0, 1] (b's is its complement)
--- @treturn number the untempered log-odds (`log_odds`); `math.huge` without b
--- @treturn table a's covariance (cov_a, or the new one)
--- @treturn table b's covariance, or nil without b
-function M.pair(a, b, sigma2, cov_a, cov_b)
-  local conf, L, ka, kb, d1, d2, d3, d4, d5, d6 = M.assess(a, b, sigma2)
-  cov_a = M.from_normal(a.normal, sigma2, ka, d1, d2, d3, d4, d5, d6, cov_a)
-  if b then cov_b = M.from_normal(b.normal, sigma2, kb, d1, d2, d3, d4, d5, d6, cov_b) end
-  return conf, L, cov_a, b and cov_b or nil
+-- @treturn number the untempered log-odds of a's branch over b's (`log_odds`); `math.huge`
+--   without b
+function M.assess(a, b, sigma2)
+  if not b then
+    a.confidence, a.k = 1, 0
+    return huge
+  end
+  local L, ka, kb = analyse(a, b, sigma2)
+  local p = M.probability(L)
+  a.confidence, b.confidence, a.k, b.k = p, 1 - p, ka, kb
+  local d1, d2, d3, d4, d5, d6 = 0, 0, 0, 0, 0, 0
+  if ka ~= 0 or kb ~= 0 then d1, d2, d3, d4, d5, d6 = chord(a, b) end
+  local da, db = a.chord, b.chord
+  if not da then
+    da = {}
+    a.chord = da
+  end
+  if not db then
+    db = {}
+    b.chord = db
+  end
+  da[1], da[2], da[3], da[4], da[5], da[6] = d1, d2, d3, d4, d5, d6
+  db[1], db[2], db[3], db[4], db[5], db[6] = -d1, -d2, -d3, -d4, -d5, -d6
+  return L
 end
 
 --- The covariance of a point carried rigidly by a pose, from the pose's: the point at
@@ -308,57 +304,6 @@ function M.move(C, o1, o2, o3, out)
     for j = 4, 6 do out[i][j] = C[i][j] end
   end
   return out
-end
-
--- A covariance made when first read: the pose table's metatable holds what it needs, in its
--- array part (H in 1..21, σ² 22, the chord factor 23, the chord 24..29, the table to fill 30),
--- and its __index makes it.
-local function lazy_index(t, key)
-  if key ~= "covariance" then return nil end
-  local p = getmetatable(t)
-  local cov = M.from_normal(p, p[22], p[23], p[24], p[25], p[26], p[27], p[28], p[29],
-    p[30] or nil)
-  p[30] = cov
-  rawset(t, "covariance", cov)
-  return cov
-end
-
---- Give a pose table a covariance made when it is first read, `σ² H⁻¹ + k d dᵀ`, from what
--- is copied here (the candidate's H, σ², the chord factor and chord) into the pose's
--- metatable. A later call on the same table refills the same covariance table, so a caller
--- who reuses one pose table allocates nothing.
--- @tparam table t the pose table (its metatable is set)
--- @tparam table c its candidate record
--- @tparam number sigma2 σ² (px²)
--- @tparam number k the chord factor (0: none)
--- @tparam number d1 the chord, (δω, δt)
--- @tparam number d2
--- @tparam number d3
--- @tparam number d4
--- @tparam number d5
--- @tparam number d6
--- @treturn table t
-function M.resolve(t, c, sigma2, k, d1, d2, d3, d4, d5, d6)
-  local p = getmetatable(t)
-  local N = c.normal
-  if not (p and p.__index == lazy_index) then
-    p = { N[1], N[2], N[3], N[4], N[5], N[6], N[7], N[8], N[9], N[10], N[11], N[12], N[13],
-      N[14], N[15], N[16], N[17], N[18], N[19], N[20], N[21], sigma2, k, d1, d2, d3, d4, d5,
-      d6, false, __index = lazy_index }
-    return setmetatable(t, p)
-  end
-  p[1], p[2], p[3], p[4], p[5], p[6], p[7] = N[1], N[2], N[3], N[4], N[5], N[6], N[7]
-  p[8], p[9], p[10], p[11], p[12], p[13], p[14] = N[8], N[9], N[10], N[11], N[12], N[13], N[14]
-  p[15], p[16], p[17], p[18], p[19], p[20], p[21] = N[15], N[16], N[17], N[18], N[19], N[20],
-    N[21]
-  p[22], p[23], p[24], p[25], p[26], p[27], p[28], p[29] = sigma2, k, d1, d2, d3, d4, d5, d6
-  -- a covariance read before is made again, into its own table
-  local old = rawget(t, "covariance")
-  if type(old) == "table" then
-    p[30] = old
-    rawset(t, "covariance", nil)
-  end
-  return t
 end
 
 return M

@@ -1,0 +1,270 @@
+--- The public result of a solve: the pose table a caller gets, and what it costs.
+--
+-- A solve returns a pose table (`position`, `rotation`, `quaternion`, `error`, `iterations`,
+-- `refine_iterations`) built from the pipeline's candidates (`tagpose.core.pipeline`). What a
+-- robot often does not read is made only when it is first read, by the pose's metatable:
+--
+-- * `alternative`, the other minimum's pose table (nil where there is one minimum);
+-- * `confidence` (the branch probability) and `covariance` (6×6), from `tagpose.uncertainty`
+--   (loaded then), with the normal equations of each candidate's last linearisation. A tracked
+--   solve sets `confidence` at once (the filter's posterior); a pose that is the only minimum
+--   has confidence 1 at once;
+-- * `track`, the tracking state this pose starts when it is used as `options.prior`, from
+--   `tagpose.track` (loaded then).
+--
+-- So `pairs(pose)` lists these fields only once read. The metatable holds what they need,
+-- copied at the solve (an array, the smallest allocation that holds it): the camera table (read
+-- then, as it is then), half the tag side, σ² (or false: the default pooled with the
+-- residuals), the tag's side in pixels, the time, the other candidate's pose and error, both
+-- candidates' normal equations and residuals, and a checksum of the returned pose: a pose
+-- changed in place before these fields are read raises an error instead of giving the
+-- uncertainty of a pose that was never solved. With `options.into` the tables, the metatable
+-- and the alternative and covariance tables made before are reused: a caller who passes the
+-- same table every frame allocates nothing.
+-- @module tagpose.core.result
+
+local rotation = require("tagpose.core.rotation")
+
+local to_nested = rotation.to_nested
+
+local M = {}
+
+-- The slots of a result's metatable. Filled at the solve: CAMERA .. ITERATIONS; filled when
+-- the uncertainty is first read: ANALYSED on.
+local CAMERA, HALF, SIGMA2, SIDE, TIME, FIRST, COUNT, CHECK = 1, 2, 3, 4, 5, 6, 7, 8
+local H_A, H_B = 8, 29 -- H of each candidate: slots 9..29 and 30..50
+local SSE_A, SSE_B = 51, 52
+local R_B, T_B, Q_B = 52, 61, 64 -- the other candidate: r 53..61, t 62..64, q 65..68
+local ERR_B, LIN_B, ITERATIONS = 69, 70, 71
+local ALT, ANALYSED, K_A, K_B, CHORD = 72, 73, 74, 75, 75 -- chord: 76..81
+local COV_A, COV_B, TRACK = 82, 83, 84 -- the tables made before, to fill again
+
+local lazy = {} -- the modules the fields made on read need, loaded with them
+local cand_a, cand_b -- the records the uncertainty takes, rebuilt from a metatable
+local analysed -- the metatable whose candidates cand_a and cand_b hold now
+
+-- The checksum of a pose table's position and quaternion.
+local function checksum(p)
+  local t, q = p.position, p.quaternion
+  return t.x + t.y + t.z + q.w + q.x + q.y + q.z
+end
+
+-- The candidate record of the returned pose (from its table, checked) and of the other (from
+-- the metatable), with their H and residuals.
+local function candidates(mt)
+  if not lazy.uncertainty then
+    lazy.uncertainty = require("tagpose.uncertainty")
+    local pipeline = require("tagpose.core.pipeline")
+    cand_a, cand_b = pipeline.candidate(), pipeline.candidate()
+  end
+  local p = mt[FIRST]
+  local sum = checksum(p)
+  if sum ~= mt[CHECK] then
+    error("tagpose: a pose was changed in place after its solve: read its alternative, "
+      .. "confidence, covariance and track before changing it (or copy it)", 3)
+  end
+  local a, b = cand_a, cand_b
+  local r, R, q, t = a.r, p.rotation, p.quaternion, p.position
+  r[1], r[2], r[3] = R[1][1], R[1][2], R[1][3]
+  r[4], r[5], r[6] = R[2][1], R[2][2], R[2][3]
+  r[7], r[8], r[9] = R[3][1], R[3][2], R[3][3]
+  a.tx, a.ty, a.tz, a.qw, a.qx, a.qy, a.qz = t.x, t.y, t.z, q.w, q.x, q.y, q.z
+  a.sse, b.sse = mt[SSE_A], mt[SSE_B]
+  local na, nb = a.normal, b.normal
+  for i = 1, 21 do na[i], nb[i] = mt[H_A + i], mt[H_B + i] end
+  r = b.r
+  for i = 1, 9 do r[i] = mt[R_B + i] end
+  b.tx, b.ty, b.tz = mt[T_B + 1], mt[T_B + 2], mt[T_B + 3]
+  b.qw, b.qx, b.qy, b.qz = mt[Q_B + 1], mt[Q_B + 2], mt[Q_B + 3], mt[Q_B + 4]
+  analysed = mt
+  return a, mt[COUNT] == 2 and b or nil
+end
+
+-- The branch analysis of a result, once: σ², the chord factors and the chord into the
+-- metatable, both confidences unless a tracker set them.
+local function analyse(mt)
+  if mt[ANALYSED] then return end
+  local a, b = candidates(mt)
+  local sigma2 = mt[SIGMA2] or lazy.uncertainty.noise(a.sse)
+  lazy.uncertainty.assess(a, b, sigma2)
+  mt[SIGMA2], mt[K_A], mt[K_B], mt[ANALYSED] = sigma2, a.k, b and b.k or 0, true
+  local d = a.chord
+  for i = 1, 6 do mt[CHORD + i] = b and d[i] or 0 end
+  local first = mt[FIRST]
+  if rawget(first, "confidence") == nil then
+    rawset(first, "confidence", a.confidence)
+    local alt = mt[ALT]
+    if b and alt then rawset(alt, "confidence", b.confidence) end
+  end
+end
+
+-- The covariance of the returned pose, or of its alternative.
+local function covariance(mt, is_alt)
+  if analysed ~= mt then candidates(mt) end
+  local c, slot, k, sign = cand_a, COV_A, mt[K_A], 1
+  if is_alt then c, slot, k, sign = cand_b, COV_B, mt[K_B], -1 end
+  c.k = k
+  local d = c.chord
+  for i = 1, 6 do d[i] = sign * mt[CHORD + i] end
+  local cov = lazy.uncertainty.covariance(c, mt[SIGMA2], mt[slot] or nil)
+  mt[slot] = cov
+  return cov
+end
+
+local spare = setmetatable({}, { __mode = "k" }) -- a result -> an alternative table to reuse
+
+-- The alternative's table, from the metatable (made once, into a table made before if any).
+local function alternative(mt)
+  local first = mt[FIRST]
+  local alt = mt[ALT] or spare[first] or {}
+  spare[first] = nil
+  local p, q, rt = alt.position, alt.quaternion, alt.rotation
+  if type(p) ~= "table" then p = {} end
+  if type(q) ~= "table" then q = {} end
+  if type(rt) ~= "table" then rt = { {}, {}, {} } end
+  p.x, p.y, p.z = mt[T_B + 1], mt[T_B + 2], mt[T_B + 3]
+  q.w, q.x, q.y, q.z = mt[Q_B + 1], mt[Q_B + 2], mt[Q_B + 3], mt[Q_B + 4]
+  local r = mt
+  local r1, r2, r3 = rt[1], rt[2], rt[3]
+  r1[1], r1[2], r1[3] = r[R_B + 1], r[R_B + 2], r[R_B + 3]
+  r2[1], r2[2], r2[3] = r[R_B + 4], r[R_B + 5], r[R_B + 6]
+  r3[1], r3[2], r3[3] = r[R_B + 7], r[R_B + 8], r[R_B + 9]
+  alt.position, alt.rotation, alt.quaternion = p, rt, q
+  alt.error, alt.iterations, alt.refine_iterations = mt[ERR_B], mt[ITERATIONS], mt[LIN_B]
+  local conf = rawget(first, "confidence")
+  alt.confidence, alt.covariance = conf ~= nil and 1 - conf or nil, nil
+  mt[ALT] = alt
+  return setmetatable(alt, mt)
+end
+
+-- __index of a result and of its alternative: the fields made when first read.
+local function made_on_read(t, key)
+  local mt = getmetatable(t)
+  local is_alt = t ~= mt[FIRST]
+  if key == "alternative" then
+    if is_alt or mt[COUNT] ~= 2 then return nil end
+    candidates(mt) -- (checks the pose)
+    local alt = alternative(mt)
+    rawset(t, "alternative", alt)
+    return alt
+  elseif key == "confidence" then
+    analyse(mt)
+    return rawget(t, key)
+  elseif key == "covariance" then
+    analyse(mt)
+    local cov = covariance(mt, is_alt)
+    rawset(t, "covariance", cov)
+    return cov
+  elseif key == "track" and not is_alt then
+    local a, b = candidates(mt)
+    local track = require("tagpose.track")
+    local state = mt[TRACK] or track.new_state()
+    mt[TRACK] = state
+    track.step(nil, a, b, mt[SIDE], mt[TIME] or nil, state)
+    rawset(t, "track", state)
+    return state
+  end
+  return nil
+end
+
+-- A pose table of a candidate: new (one constructor per table), or `into` filled in place.
+local function pose_table(c, err, iterations, refine_iterations, into)
+  local r = c.r
+  if not into then
+    return {
+      position = { x = c.tx, y = c.ty, z = c.tz },
+      rotation = { { r[1], r[2], r[3] }, { r[4], r[5], r[6] }, { r[7], r[8], r[9] } },
+      quaternion = { w = c.qw, x = c.qx, y = c.qy, z = c.qz },
+      error = err,
+      iterations = iterations,
+      refine_iterations = refine_iterations,
+    }
+  end
+  local p = into.position
+  if type(p) ~= "table" then
+    p = {}
+    into.position = p
+  end
+  p.x, p.y, p.z = c.tx, c.ty, c.tz
+  local rt = into.rotation
+  if type(rt) ~= "table" then
+    rt = {}
+    into.rotation = rt
+  end
+  to_nested(r, rt)
+  local qt = into.quaternion
+  if type(qt) ~= "table" then
+    qt = {}
+    into.quaternion = qt
+  end
+  qt.w, qt.x, qt.y, qt.z = c.qw, c.qx, c.qy, c.qz
+  into.error, into.iterations, into.refine_iterations = err, iterations, refine_iterations
+  local alt = rawget(into, "alternative")
+  if alt then spare[into] = alt end
+  into.alternative, into.confidence, into.covariance, into.track = nil, nil, nil, nil
+  return into
+end
+
+--- The result of a solve from its candidates: the pose `a`, the other minimum `b` (or nil),
+-- with the fields above made on read.
+-- @tparam table a the pose's candidate (`r`, `tx`, `ty`, `tz`, `qw`, `qx`, `qy`, `qz`, `sse`,
+--   `normal`: H in its first 21 numbers)
+-- @tparam number ea its RMS reprojection error (px)
+-- @tparam ?table b the other minimum's candidate, or nil
+-- @tparam ?number eb its error
+-- @tparam int iterations solveQuad's iterations
+-- @tparam ?int la the linearisations spent on a (nil for the report's method)
+-- @tparam ?int lb those spent on b
+-- @tparam table camera the camera (kept for the fields made on read)
+-- @tparam number half half the tag side
+-- @tparam ?number sigma2 σ² (px²), or nil: the default pooled with a's residuals
+-- @tparam number side the tag's side in pixels
+-- @tparam ?number time the frame's time (s)
+-- @tparam ?table into a pose table to fill
+-- @treturn table the pose
+function M.new(a, ea, b, eb, iterations, la, lb, camera, half, sigma2, side, time, into)
+  local result = pose_table(a, ea, iterations, la, into)
+  local count = b and 2 or 1
+  b = b or a
+  local na, nb, r, sum = a.normal, b.normal, b.r, checksum(result)
+  local mt = getmetatable(result)
+  if not (mt and mt.__index == made_on_read) then
+    -- (one constructor: the array part is allocated once, at its size)
+    setmetatable(result, { camera, half, sigma2 or false, side, time or false, result,
+      count, sum,
+      na[1], na[2], na[3], na[4], na[5], na[6], na[7], na[8], na[9], na[10], na[11], na[12],
+      na[13], na[14], na[15], na[16], na[17], na[18], na[19], na[20], na[21],
+      nb[1], nb[2], nb[3], nb[4], nb[5], nb[6], nb[7], nb[8], nb[9], nb[10], nb[11], nb[12],
+      nb[13], nb[14], nb[15], nb[16], nb[17], nb[18], nb[19], nb[20], nb[21],
+      a.sse, b.sse, r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8], r[9], b.tx, b.ty, b.tz,
+      b.qw, b.qx, b.qy, b.qz, eb or ea, lb or false, iterations, false, false,
+      __index = made_on_read })
+    if count == 1 then result.confidence = 1 end
+    return result
+  end
+  if analysed == mt then analysed = nil end
+  local alt = rawget(mt, ALT)
+  if alt then spare[result] = alt end
+  mt[CAMERA], mt[HALF], mt[SIGMA2], mt[SIDE], mt[TIME], mt[FIRST], mt[COUNT], mt[CHECK] =
+    camera, half, sigma2 or false, side, time or false, result, count, sum
+  for i = 1, 21 do mt[H_A + i], mt[H_B + i] = na[i], nb[i] end
+  mt[SSE_A], mt[SSE_B] = a.sse, b.sse
+  for i = 1, 9 do mt[R_B + i] = r[i] end
+  mt[T_B + 1], mt[T_B + 2], mt[T_B + 3] = b.tx, b.ty, b.tz
+  mt[Q_B + 1], mt[Q_B + 2], mt[Q_B + 3], mt[Q_B + 4] = b.qw, b.qx, b.qy, b.qz
+  mt[ERR_B], mt[LIN_B], mt[ITERATIONS], mt[ALT], mt[ANALYSED] = eb or ea, lb or false,
+    iterations, false, false
+  if count == 1 then result.confidence = 1 end
+  return result
+end
+
+--- Set the branch confidence of a result (a tracker's) instead of the single frame's.
+-- @tparam table result a result of `new`
+-- @tparam number confidence the pose's; its alternative's is the complement
+-- @treturn table result
+function M.set_confidence(result, confidence)
+  rawset(result, "confidence", confidence)
+  return result
+end
+
+return M
