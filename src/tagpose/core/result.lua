@@ -29,15 +29,15 @@ local to_nested = rotation.to_nested
 
 local M = {}
 
--- The slots of a result's metatable. Filled at the solve: CAMERA .. ITERATIONS; filled when
--- the uncertainty is first read: ANALYSED on.
-local CAMERA, HALF, SIGMA2, SIDE, TIME, FIRST, COUNT, CHECK = 1, 2, 3, 4, 5, 6, 7, 8
-local H_A, H_B = 8, 29 -- H of each candidate: slots 9..29 and 30..50
-local SSE_A, SSE_B = 51, 52
-local R_B, T_B, Q_B = 52, 61, 64 -- the other candidate: r 53..61, t 62..64, q 65..68
-local ERR_B, LIN_B, ITERATIONS = 69, 70, 71
-local ALT, ANALYSED, K_A, K_B, CHORD = 72, 73, 74, 75, 75 -- chord: 76..81
-local COV_A, COV_B, TRACK = 82, 83, 84 -- the tables made before, to fill again
+-- The slots of a result's metatable. Filled at the solve: CAMERA .. LIN_B (ERR_B false when
+-- the pose is the only minimum); filled when the fields are first read: ALT on.
+local CAMERA, HALF, SIGMA2, SIDE, TIME, FIRST, CHECK = 1, 2, 3, 4, 5, 6, 7
+local H_A, H_B = 7, 28 -- H of each candidate: slots 8..28 and 29..49
+local SSE_A, SSE_B = 50, 51
+local R_B, T_B, Q_B = 51, 60, 63 -- the other candidate: r 52..60, t 61..63, q 64..67
+local ERR_B, LIN_B = 68, 69
+local ALT, ANALYSED, K_A, K_B, CHORD = 70, 71, 72, 73, 73 -- chord: 74..79
+local COV_A, COV_B, TRACK = 80, 81, 82 -- the tables made before, to fill again
 
 local lazy = {} -- the modules the fields made on read need, loaded with them
 local cand_a, cand_b -- the records the uncertainty takes, rebuilt from a metatable
@@ -77,7 +77,7 @@ local function candidates(mt)
   b.tx, b.ty, b.tz = mt[T_B + 1], mt[T_B + 2], mt[T_B + 3]
   b.qw, b.qx, b.qy, b.qz = mt[Q_B + 1], mt[Q_B + 2], mt[Q_B + 3], mt[Q_B + 4]
   analysed = mt
-  return a, mt[COUNT] == 2 and b or nil
+  return a, mt[ERR_B] and b or nil
 end
 
 -- The branch analysis of a result, once: σ², the chord factors and the chord into the
@@ -130,7 +130,8 @@ local function alternative(mt)
   r2[1], r2[2], r2[3] = r[R_B + 4], r[R_B + 5], r[R_B + 6]
   r3[1], r3[2], r3[3] = r[R_B + 7], r[R_B + 8], r[R_B + 9]
   alt.position, alt.rotation, alt.quaternion = p, rt, q
-  alt.error, alt.iterations, alt.refine_iterations = mt[ERR_B], mt[ITERATIONS], mt[LIN_B]
+  alt.error, alt.iterations, alt.refine_iterations = mt[ERR_B], rawget(first, "iterations"),
+    mt[LIN_B] or nil
   local conf = rawget(first, "confidence")
   alt.confidence, alt.covariance = conf ~= nil and 1 - conf or nil, nil
   mt[ALT] = alt
@@ -142,7 +143,7 @@ local function made_on_read(t, key)
   local mt = getmetatable(t)
   local is_alt = t ~= mt[FIRST]
   if key == "alternative" then
-    if is_alt or mt[COUNT] ~= 2 then return nil end
+    if is_alt or not mt[ERR_B] then return nil end
     candidates(mt) -- (checks the pose)
     local alt = alternative(mt)
     rawset(t, "alternative", alt)
@@ -230,30 +231,27 @@ function M.new(a, ea, b, eb, iterations, la, lb, camera, half, sigma2, side, tim
   local mt = getmetatable(result)
   if not (mt and mt.__index == made_on_read) then
     -- (one constructor: the array part is allocated once, at its size)
-    setmetatable(result, { camera, half, sigma2 or false, side, time or false, result,
-      count, sum,
+    setmetatable(result, { camera, half, sigma2 or false, side, time or false, result, sum,
       na[1], na[2], na[3], na[4], na[5], na[6], na[7], na[8], na[9], na[10], na[11], na[12],
       na[13], na[14], na[15], na[16], na[17], na[18], na[19], na[20], na[21],
       nb[1], nb[2], nb[3], nb[4], nb[5], nb[6], nb[7], nb[8], nb[9], nb[10], nb[11], nb[12],
       nb[13], nb[14], nb[15], nb[16], nb[17], nb[18], nb[19], nb[20], nb[21],
       a.sse, b.sse, r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8], r[9], b.tx, b.ty, b.tz,
-      b.qw, b.qx, b.qy, b.qz, eb or ea, lb or false, iterations, false, false,
-      __index = made_on_read })
+      b.qw, b.qx, b.qy, b.qz, count == 2 and eb, lb or false, __index = made_on_read })
     if count == 1 then result.confidence = 1 end
     return result
   end
   if analysed == mt then analysed = nil end
   local alt = rawget(mt, ALT)
   if alt then spare[result] = alt end
-  mt[CAMERA], mt[HALF], mt[SIGMA2], mt[SIDE], mt[TIME], mt[FIRST], mt[COUNT], mt[CHECK] =
-    camera, half, sigma2 or false, side, time or false, result, count, sum
+  mt[CAMERA], mt[HALF], mt[SIGMA2], mt[SIDE], mt[TIME], mt[FIRST], mt[CHECK] =
+    camera, half, sigma2 or false, side, time or false, result, sum
   for i = 1, 21 do mt[H_A + i], mt[H_B + i] = na[i], nb[i] end
   mt[SSE_A], mt[SSE_B] = a.sse, b.sse
   for i = 1, 9 do mt[R_B + i] = r[i] end
   mt[T_B + 1], mt[T_B + 2], mt[T_B + 3] = b.tx, b.ty, b.tz
   mt[Q_B + 1], mt[Q_B + 2], mt[Q_B + 3], mt[Q_B + 4] = b.qw, b.qx, b.qy, b.qz
-  mt[ERR_B], mt[LIN_B], mt[ITERATIONS], mt[ALT], mt[ANALYSED] = eb or ea, lb or false,
-    iterations, false, false
+  mt[ERR_B], mt[LIN_B], mt[ALT], mt[ANALYSED] = count == 2 and eb, lb or false, false, false
   if count == 1 then result.confidence = 1 end
   return result
 end
