@@ -243,8 +243,9 @@ describe("tagpose.formats.calibration", function()
       { "camera_matrix: [1, 2]\n", "c.yaml:1: camera_matrix: a mapping {rows, cols, data}"
         .. " expected, got table" },
       { "image_width: 640\n", "c.yaml:1: no camera matrix: not a ROS camera_calibration file"
-        .. " (camera_matrix), a CameraInfo message (K) or an OpenCV FileStorage file"
-        .. " (camera_matrix: !!opencv-matrix)" },
+        .. " (camera_matrix), a CameraInfo message (K), an OpenCV FileStorage file"
+        .. " (camera_matrix: !!opencv-matrix) or a Kalibr camchain (cam0: {camera_model,"
+        .. " intrinsics, ...})" },
       { "camra_matrix: 1\n", "c.yaml:1: unknown key 'camra_matrix' (did you mean"
         .. " camera_matrix?)" },
       { run.read(FIXTURES .. "opencv_kd.yml"):gsub("dt: d", "dt: u", 1), "c.yaml:5: K.dt: 'd'"
