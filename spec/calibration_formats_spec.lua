@@ -154,7 +154,8 @@ describe("tagpose.calibration.read() of the files users have", function()
         .. " [0, fy, cy], [0, 0, 1]] expected" },
       { edit(json, '"camera_matrix"', '"camera_matrx"'), "c.json:13: unknown key"
         .. " 'camera_matrx' (did you mean camera_matrix?)" },
-      { "[1, 2]", "c.json:1: an object of calibration entries expected ({\"camera_matrix\": ...})" },
+      { "[1, 2]", "c.json:1: an object of calibration entries expected"
+        .. " ({\"camera_matrix\": ...})" },
       { '<?xml version="1.0"?>\n<opencv_storage>\n<a>1</a>\n</opencv_storage>\n', "c.xml:1: no"
         .. " camera matrix (camera_matrix, cameraMatrix or K, an opencv-matrix)" },
     }
