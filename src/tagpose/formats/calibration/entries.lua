@@ -78,8 +78,9 @@ local function format_of(y)
   for k, v in pairs(doc) do -- a Kalibr camchain: cam0, cam1, ... mappings
     if type(k) == "string" and k:match("^cam%d+$") and is_mapping(v) then return "kalibr" end
   end
+  local suggest_matrix = common.suggester({ "camera_matrix", "K" })
   for _, k in ipairs(sorted_keys(doc)) do
-    local hint = type(k) == "string" and suggest(k, { "camera_matrix", "K" })
+    local hint = suggest_matrix(k)
     if hint then fail(y, y.top[k], "unknown key " .. key_name(k) .. " (did you mean " .. hint
       .. "?)") end
   end
