@@ -198,6 +198,11 @@ describe("tagpose.formats.calibration", function()
         { "return { " .. base .. ", width = 640.5 }", "c.lua:1: width: whole number of pixels"
           .. " expected, got number 640.5" },
         { "return 42", "c.lua:1: a camera table expected, got number 42" },
+        -- what every solve would refuse is refused at read, with its line
+        { "return {\n fx = 1e-320, fy = 700, cx = 320, cy = 240 }", "c.lua:2: fx: a focal length"
+          .. " in pixels between 1e-09 and 1e+12 expected, got number " .. tostring(1e-320) },
+        { "return { fx = 700, fy = 700,\n cx = 320, cy = -2e12 }", "c.lua:2: cy: a principal"
+          .. " point coordinate in pixels within 1e+12 expected, got number " .. tostring(-2e12) },
       }
       for _, case in ipairs(cases) do
         assert.equal("calibration: " .. case[2], refused(case[1], "c.lua"), case[1])
@@ -231,13 +236,16 @@ describe("tagpose.formats.calibration", function()
         .. " expected, got string a" },
       { ost:gsub("615%.925860", "-615.9"), "c.yaml:4: K: positive focal lengths expected, got"
         .. " fx = -615.9, fy = 617.133667" },
+      { ost:gsub("615%.925860", "1e-320"), "c.yaml:4: K: fx: a focal length in pixels between"
+        .. " 1e-09 and 1e+12 expected, got number " .. tostring(1e-320) },
       { ost:gsub("0%.111906", ".nan"), "c.yaml:12: '.nan' (not a number or infinite) is"
         .. " refused" },
       { "camera_matrix: [1, 2]\n", "c.yaml:1: camera_matrix: a mapping {rows, cols, data}"
         .. " expected, got table" },
       { "image_width: 640\n", "c.yaml:1: no camera matrix: not a ROS camera_calibration file"
-        .. " (camera_matrix), a CameraInfo message (K) or an OpenCV FileStorage file"
-        .. " (camera_matrix: !!opencv-matrix)" },
+        .. " (camera_matrix), a CameraInfo message (K), an OpenCV FileStorage file"
+        .. " (camera_matrix: !!opencv-matrix) or a Kalibr camchain (cam0: {camera_model,"
+        .. " intrinsics, ...})" },
       { "camra_matrix: 1\n", "c.yaml:1: unknown key 'camra_matrix' (did you mean"
         .. " camera_matrix?)" },
       { run.read(FIXTURES .. "opencv_kd.yml"):gsub("dt: d", "dt: u", 1), "c.yaml:5: K.dt: 'd'"

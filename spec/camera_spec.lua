@@ -201,6 +201,29 @@ describe("tagpose.core.camera", function()
         { function() camera_model.from_matrix(K, {}, "kannala") end,
           "bad argument #3 to 'from_matrix' (distortion model 'plumb_bob', "
             .. "'rational_polynomial' or 'equidistant' expected, got string kannala)" },
+        -- ROS's 3x4 P given for K: named, with what to pass instead
+        { function() camera_model.from_matrix({ 900, 0, 320, 0, 0, 900, 240, 0, 0, 0, 1, 0 }) end,
+          "bad argument #1 to 'from_matrix' (K: 9 numbers (a 3x3 camera matrix, row-major)"
+            .. " expected, got 12: a 3x4 projection matrix (ROS's P)? its first three columns,"
+            .. " {P[1], P[2], P[3], P[5], P[6], P[7], P[9], P[10], P[11]}, are the camera matrix"
+            .. " of the rectified image)" },
+        { function()
+          camera_model.from_matrix({ { 900, 0, 320, 0 }, { 0, 900, 240, 0 }, { 0, 0, 1, 0 } })
+        end, "bad argument #1 to 'from_matrix' (K: a 3x3 camera matrix expected, got 3x4: a"
+          .. " projection matrix (ROS's P)? its first three columns are the camera matrix of the"
+          .. " rectified image)" },
+        { function() camera_model.from_matrix({ 600, 0, 320, 0, 610, 240, 0, 0, 1, 0 }) end,
+          "bad argument #1 to 'from_matrix' (K: 9 numbers (a 3x3 camera matrix, row-major)"
+            .. " expected, got 10)" },
+        { function() camera_model.from_matrix({ { 600, 0, 320 }, { 0, 610, 240, 7 }, { 0, 0, 1 } })
+        end, "bad argument #1 to 'from_matrix' (K[2]: 3 numbers expected, got 4)" },
+        -- what solve would refuse on every call is refused here
+        { function() camera_model.from_matrix({ 1e-320, 0, 320, 0, 610, 240, 0, 0, 1 }) end,
+          "bad argument #1 to 'from_matrix' (K: fx: a focal length in pixels between 1e-09 and"
+            .. " 1e+12 expected, got number " .. tostring(1e-320) .. ")" },
+        { function() camera_model.from_matrix({ 600, 0, 320, 0, 610, -1e13, 0, 0, 1 }) end,
+          "bad argument #1 to 'from_matrix' (K: cy: a principal point coordinate in pixels within"
+            .. " 1e+12 expected, got number " .. tostring(-1e13) .. ")" },
       }
       for _, case in ipairs(cases) do
         local ok, err = pcall(case[1])

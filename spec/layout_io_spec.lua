@@ -185,7 +185,7 @@ describe("tagpose.layout", function()
       end
       local none, why = tagpose.layout.read(file("layout.txt", "x"))
       assert.is_nil(none)
-      assert.matches("%.lua, %.yaml, %.yml or %.csv expected", why)
+      assert.matches("%.lua, %.yaml, %.yml, %.csv or %.json expected", why)
       none, why = tagpose.layout.read(dir .. "/missing.lua")
       assert.is_nil(none)
       assert.matches("^layout: ", why)

@@ -238,12 +238,28 @@ function M.from_matrix(K, D, model)
   if type(K) ~= "table" then bad(1, "table expected for K, got " .. type(K)) end
   local k = {}
   if type(K[1]) == "table" then
+    local rows, cols = #K, #K[1]
+    if rows == 3 and cols == 4 then
+      bad(1, "K: a 3x3 camera matrix expected, got 3x4: a projection matrix (ROS's P)? its"
+        .. " first three columns are the camera matrix of the rectified image")
+    elseif rows ~= 3 then
+      bad(1, "K: a 3x3 camera matrix expected, got " .. rows .. " rows")
+    end
     for row = 1, 3 do
       local r = K[row]
       if type(r) ~= "table" then bad(1, "K[" .. row .. "]: row table expected, got " .. type(r)) end
+      if #r ~= 3 then bad(1, "K[" .. row .. "]: 3 numbers expected, got " .. #r) end
       for col = 1, 3 do k[(row - 1) * 3 + col] = r[col] end
     end
   else
+    local n = #K
+    if n == 12 then
+      bad(1, "K: 9 numbers (a 3x3 camera matrix, row-major) expected, got 12: a 3x4 projection"
+        .. " matrix (ROS's P)? its first three columns, {P[1], P[2], P[3], P[5], P[6], P[7],"
+        .. " P[9], P[10], P[11]}, are the camera matrix of the rectified image")
+    elseif n > 9 then
+      bad(1, "K: 9 numbers (a 3x3 camera matrix, row-major) expected, got " .. n)
+    end
     for i = 1, 9 do k[i] = K[i] end
   end
   for i = 1, 9 do
@@ -258,6 +274,9 @@ function M.from_matrix(K, D, model)
     bad(1, "K: a camera matrix [[fx, s, cx], [0, fy, cy], [0, 0, 1]] expected")
   end
   if k[2] ~= 0 then bad(1, "K: skew is not supported (K[1][2] must be 0)") end
+  local problem = focal("fx", k[1]) or focal("fy", k[5]) or centre("cx", k[3])
+    or centre("cy", k[6])
+  if problem then bad(1, "K: " .. (problem:gsub("^camera%.", ""))) end
   if model == nil then model = "plumb_bob" end
   local kind = MODELS[model]
   if not kind then

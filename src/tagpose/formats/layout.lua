@@ -11,7 +11,8 @@
 --   `R_tagpose = R_ros·diag(1, -1, -1)`, so each quaternion is multiplied on the right by
 --   `(0, 1, 0, 0)` on reading and on writing (the turn is its own inverse); positions, sizes and
 --   the body frame are the same;
--- * CSV (`.csv`): `id,size,x,y,z,qw,qx,qy,qz`, one tag a line (the data sets' form).
+-- * CSV (`.csv`): `id,size,x,y,z,qw,qx,qy,qz`, one tag a line (the data sets' form);
+-- * WPILib field maps (`.json`, read only): `tagpose.formats.wpilib`.
 --
 -- Errors are `nil, "path:LINE: reason"`.
 -- @module tagpose.formats.layout
@@ -286,24 +287,37 @@ function M.encode_lua(tags, name)
   return concat(lines, "\n") .. "\n"
 end
 
+-- a WPILib field map (loaded when first read): the bundle names nothing there, size is needed
+local function decode_wpilib(text, name, bundle, size)
+  if bundle ~= nil then return nil, "layout: " .. name .. ": a WPILib field map has no bundles" end
+  return require("tagpose.formats.wpilib").decode(text, name, size)
+end
+
 local DECODE = { lua = M.decode_lua, yaml = M.decode_yaml, yml = M.decode_yaml,
-  csv = M.decode_csv }
+  csv = M.decode_csv, json = decode_wpilib }
 local ENCODE = { lua = M.encode_lua, yaml = M.encode_yaml, yml = M.encode_yaml,
   csv = M.encode_csv }
 
 --- Read a layout file, in the format its extension names.
 -- @tparam string path
--- @tparam[opt] string bundle for a `tags.yaml`, the bundle to read
+-- @tparam[opt] string|table options for a `tags.yaml`, the bundle to read; or `{bundle =,
+--   size =}`, `size` the tags' side for a WPILib field map (`.json`), which has none
 -- @treturn table layout
 -- @return nil, string
-function M.read(path, bundle)
+function M.read(path, options)
+  local bundle, size = options, nil
+  if type(options) == "table" then bundle, size = options.bundle, options.size end
   local decode = DECODE[extension(path)]
   if not decode then
-    return nil, "layout: " .. path .. ": .lua, .yaml, .yml or .csv expected"
+    return nil, "layout: " .. path .. ": .lua, .yaml, .yml, .csv or .json expected"
+  end
+  if size ~= nil and decode ~= decode_wpilib then
+    return nil, "layout: " .. path .. ": size is for WPILib field maps (.json): this file gives"
+      .. " each tag's size"
   end
   local text, err = read_text(path)
   if not text then return nil, err end
-  return decode(text, path, bundle)
+  return decode(text, path, bundle, size)
 end
 
 --- Write a layout file, in the format its extension names.

@@ -155,20 +155,28 @@ function M.calibrate(frames, camera, layout, options)
   return calibration.calibrate(frames, camera, tags, o, layout.name)
 end
 
+local READ_OPTIONS = {
+  bundle = { function(v) return type(v) == "string" end, "string" },
+  size = { is_positive, "positive number" },
+}
+
 --- Read a layout file: a Lua data file (`.lua`; read as data, never run), an apriltag_ros
--- `tags.yaml` (`.yaml`, `.yml`; its tags converted to tagpose's tag frame) or a CSV table
--- `id,size,x,y,z,qw,qx,qy,qz` (`.csv`).
+-- `tags.yaml` (`.yaml`, `.yml`; its tags converted to tagpose's tag frame), a CSV table
+-- `id,size,x,y,z,qw,qx,qy,qz` (`.csv`) or a WPILib field map (`.json`; its tags converted to
+-- tagpose's tag frame, metres).
 -- @tparam string path
--- @tparam[opt] string bundle for a `tags.yaml` of several bundles, the name of the one to read
+-- @tparam[opt] string|table options `{bundle =, size =}`: `bundle` the name of the bundle to
+--   read from a `tags.yaml` of several (or that name alone, as a string); `size` the side of
+--   the tags' black squares, which a WPILib field map needs (it has none)
 -- @treturn table layout
 -- @return nil, string when the file cannot be read or is not a layout (with its line)
--- @raise `bad argument #1 to 'read'` when path is not a string
-function M.read(path, bundle)
+-- @raise `bad argument #n to 'read'` when path is not a string or an option is wrong
+-- @usage
+-- local field = assert(tagpose.layout.read("2024-crescendo.json", { size = 0.1651 }))
+function M.read(path, options)
   if type(path) ~= "string" then raise(1, "read", "string expected, got " .. type(path)) end
-  if bundle ~= nil and type(bundle) ~= "string" then
-    raise(2, "read", "string expected for the bundle name, got " .. type(bundle))
-  end
-  return io_layout.read(path, bundle)
+  if type(options) ~= "string" then read_options(options, 2, "read", READ_OPTIONS) end
+  return io_layout.read(path, options)
 end
 
 --- Write a layout file, in the format its extension names (as `read`).

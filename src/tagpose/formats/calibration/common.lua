@@ -11,7 +11,7 @@ local camera_model = require("tagpose.core.camera")
 local yaml = require("tagpose.formats.yaml")
 
 local is_finite = compat.is_finite
-local floor, min = math.floor, math.min
+local floor = math.floor
 
 local M = {}
 
@@ -35,42 +35,84 @@ function M.fail(name, at, reason)
   M.refuse("calibration: " .. name .. (at and (":" .. at) or "") .. ": " .. reason)
 end
 
--- optimal string alignment distance of two short strings, ignoring case
-local function distance(a, b)
-  a, b = a:lower(), b:lower()
-  if a == b then return 0 end
-  local la, lb = #a, #b
-  local prev2, prev = {}, {}
-  for j = 0, lb do prev[j] = j end
+-- The optimal string alignment distance of two lowercased strings given as byte arrays, when it
+-- is at most `limit`; `limit + 1` otherwise. Only the band |i - j| <= limit of the table is
+-- filled, and the scan stops at the first row whose every entry exceeds the limit, so a key far
+-- from the candidate costs a few rows of 2·limit + 1 entries. `rows` holds three scratch rows.
+local function bounded_distance(a, la, b, lb, limit, rows)
+  local over = limit + 1
+  if la - lb > limit or lb - la > limit then return over end
+  local prev2, prev, cur = rows[1], rows[2], rows[3]
+  for j = 0, lb do prev[j] = j <= limit and j or over end
   for i = 1, la do
-    local cur = { [0] = i }
-    for j = 1, lb do
-      local cost = a:byte(i) == b:byte(j) and 0 or 1
-      local d = min(prev[j] + 1, cur[j - 1] + 1, prev[j - 1] + cost)
-      if i > 1 and j > 1 and a:byte(i) == b:byte(j - 1) and a:byte(i - 1) == b:byte(j) then
-        d = min(d, prev2[j - 2] + 1)
+    local lo, hi = i - limit, i + limit
+    if lo < 1 then lo = 1 end
+    if hi > lb then hi = lb end
+    cur[lo - 1] = (lo == 1 and i <= limit) and i or over
+    local row_min = cur[lo - 1]
+    local ai, ai1 = a[i], a[i - 1]
+    for j = lo, hi do
+      local bj = b[j]
+      local d = prev[j] + 1
+      local ins = cur[j - 1] + 1
+      if ins < d then d = ins end
+      local sub = prev[j - 1] + (ai == bj and 0 or 1)
+      if sub < d then d = sub end
+      if i > 1 and j > 1 and ai == b[j - 1] and ai1 == bj then
+        local swap = prev2[j - 2] + 1
+        if swap < d then d = swap end
       end
+      if d > over then d = over end
       cur[j] = d
+      if d < row_min then row_min = d end
     end
-    prev2, prev = prev, cur
+    if hi < lb then cur[hi + 1] = over end
+    if row_min > limit then return over end
+    prev2, prev, cur = prev, cur, prev2
   end
-  return prev[lb]
+  return prev[lb] <= limit and prev[lb] or over
 end
 
---- The candidate a mistyped key most likely meant (differing in case only, or by one edit
--- for a key of up to 4 characters, two for a longer one; an edit is an insertion, a deletion,
--- a substitution or a swap of neighbours), or nil.
+local function lower_bytes(s, out)
+  s = s:lower()
+  for i = 1, #s do out[i] = s:byte(i) end
+  return out, #s
+end
+
+--- A suggester for one set of candidates, made once (per file) and asked for each key: the
+-- candidate a mistyped key most likely meant (differing in case only, or by one edit for a key
+-- of up to 4 characters, two for a longer one; an edit is an insertion, a deletion, a
+-- substitution or a swap of neighbours), or nil. Each question costs time linear in the key's
+-- length per candidate of a near length, so a file of many unknown keys is read in time linear
+-- in its size.
+-- @tparam {string,...} candidates
+-- @treturn function `suggest(key)` → the candidate or nil
+function M.suggester(candidates)
+  local bytes, lengths = {}, {}
+  for i, c in ipairs(candidates) do
+    bytes[i], lengths[i] = lower_bytes(c, {})
+  end
+  local rows = { {}, {}, {} }
+  local key_bytes = {}
+  return function(key)
+    if type(key) ~= "string" or #key > 64 then return nil end
+    local k, lk = lower_bytes(key, key_bytes)
+    local limit = #key <= 4 and 1 or 2
+    local best, best_d = nil, limit + 1
+    for i = 1, #candidates do
+      local d = bounded_distance(k, lk, bytes[i], lengths[i], limit, rows)
+      if d < best_d then best, best_d = candidates[i], d end
+    end
+    return best
+  end
+end
+
+--- The candidate a mistyped key most likely meant (see `suggester`), or nil.
 -- @tparam string key
 -- @tparam {string,...} candidates
 -- @treturn string|nil
 function M.suggest(key, candidates)
-  if type(key) ~= "string" or #key > 64 then return nil end
-  local best, best_d = nil, 3
-  for _, c in ipairs(candidates) do
-    local d = distance(key, c)
-    if d < best_d and (d == 0 or d <= (#key <= 4 and 1 or 2)) then best, best_d = c, d end
-  end
-  return best
+  return M.suggester(candidates)(key)
 end
 
 --- A value as a message names it: `null`, `number 3`, `string abc`, `table`.
@@ -156,7 +198,8 @@ function M.opencv_coefficients(d, kind, fail)
   return d
 end
 
---- The camera from a flat K, coefficients and a model name, through `camera.from_matrix`.
+--- The camera from a flat K, coefficients and a model name, through `camera.from_matrix`,
+-- checked as `tagpose.solve` checks it.
 -- @tparam {number,...} k flat 3x3, row-major
 -- @tparam {number,...} d the coefficients, OpenCV order
 -- @tparam string model
@@ -168,6 +211,9 @@ function M.build(k, d, model, fail)
     local reason = tostring(camera):match("^bad argument #%d+ to 'from_matrix' %((.*)%)$")
     fail(reason or tostring(camera))
   end
+  -- what every later call would refuse is refused now, while the file's line is known
+  local problem = camera_model.check(camera)
+  if problem then fail(problem) end
   return camera
 end
 

@@ -8,8 +8,9 @@
 --     { name = string, doc = table, where = table, top = table, format = string }
 --
 -- (`doc` the decoded mapping, `where` the lines of `tagpose.formats.yaml.decode`, `top` the lines
--- of `doc`'s keys, `format` `"ros"`, `"camera_info"` or `"opencv"`). Functions raise the `Failure`
--- of `tagpose.calibration.common`.
+-- of `doc`'s keys, `format` `"ros"`, `"camera_info"`, `"opencv"` or `"kalibr"`; OpenCV's XML and
+-- JSON give the same record, `tagpose.calibration.storage`). Functions raise the `Failure` of
+-- `tagpose.calibration.common`.
 -- @module tagpose.formats.calibration.entries
 
 local compat = require("tagpose.core.compat")
@@ -66,7 +67,7 @@ end
 
 local is_mapping, is_sequence = M.is_mapping, M.is_sequence
 
--- which format: an !!opencv-matrix, ROS's camera_matrix, CameraInfo's K
+-- which format: an !!opencv-matrix, ROS's camera_matrix, CameraInfo's K, Kalibr's cam0
 local function format_of(y)
   local doc = y.doc
   for _, k in ipairs(M.CV_MATRIX) do
@@ -74,13 +75,18 @@ local function format_of(y)
   end
   if doc.camera_matrix ~= nil then return "ros" end
   if doc.K ~= nil or doc.k ~= nil then return "camera_info" end
+  for k, v in pairs(doc) do -- a Kalibr camchain: cam0, cam1, ... mappings
+    if type(k) == "string" and k:match("^cam%d+$") and is_mapping(v) then return "kalibr" end
+  end
+  local suggest_matrix = common.suggester({ "camera_matrix", "K" })
   for _, k in ipairs(sorted_keys(doc)) do
-    local hint = type(k) == "string" and suggest(k, { "camera_matrix", "K" })
+    local hint = suggest_matrix(k)
     if hint then fail(y, y.top[k], "unknown key " .. key_name(k) .. " (did you mean " .. hint
       .. "?)") end
   end
   fail(y, 1, "no camera matrix: not a ROS camera_calibration file (camera_matrix), a"
-    .. " CameraInfo message (K) or an OpenCV FileStorage file (camera_matrix: !!opencv-matrix)")
+    .. " CameraInfo message (K), an OpenCV FileStorage file (camera_matrix: !!opencv-matrix) or"
+    .. " a Kalibr camchain (cam0: {camera_model, intrinsics, ...})")
 end
 
 --- Decode a YAML calibration file and tell its format.
@@ -152,7 +158,7 @@ function M.matrix(y, parent, key, tagged)
   local at = line(y, parent, key)
   if tagged then
     if type(m) ~= "table" or m[TAG] ~= "opencv-matrix" then
-      fail(y, at, key .. ": an !!opencv-matrix expected, got " .. describe(m))
+      fail(y, at, key .. ": an opencv-matrix expected, got " .. describe(m))
     end
   elseif not is_mapping(m) then
     fail(y, at, key .. ": a mapping {rows, cols, data} expected, got " .. describe(m))

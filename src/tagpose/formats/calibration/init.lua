@@ -15,25 +15,32 @@
 -- * a **ROS `CameraInfo` message** as `rostopic echo` / `ros2 topic echo` print it (`height,
 --   width, distortion_model, D, K, R, P, binning_x, binning_y, roi, header`, or lower case
 --   `d, k, r, p`);
--- * **OpenCV FileStorage** YAML (`%YAML:1.0`) with `!!opencv-matrix` entries, under the names
---   OpenCV's calibration samples write (`camera_matrix`, `distortion_coefficients`,
---   `image_width`, `image_height`, `fisheye_model`) or the short `K` / `D` (also `cameraMatrix` /
---   `distCoeffs`).
+-- * **OpenCV FileStorage** YAML (`%YAML:1.0`, `!!opencv-matrix` entries), XML
+--   (`<opencv_storage>`, `type_id="opencv-matrix"`) or JSON (`"type_id": "opencv-matrix"`),
+--   under the names OpenCV's calibration samples write (`camera_matrix`,
+--   `distortion_coefficients`, `image_width`, `image_height`, `fisheye_model`: the tutorial's
+--   `out_camera_data.xml`) or the short `K` / `D` (also `cameraMatrix` / `distCoeffs`);
+-- * a **Kalibr camchain** (`camchain.yaml`, `camchain-imucam.yaml`): `cam0`, `cam1`, ... each
+--   with `camera_model: pinhole`, `intrinsics: [fu, fv, pu, pv]`, `distortion_model` `radtan`
+--   (= `plumb_bob`), `equidistant` (the fisheye) or `none`, `distortion_coeffs`, `resolution`,
+--   ...; `cam0` is read unless `read(path, "cam1")` names another.
 --
--- A Lua file is told by its name ending in `.lua`, a YAML file by `.yaml` or `.yml`; another
--- name by its text (`return` or `--` first: Lua). Anything not understood is refused with its
--- line: an unknown key (naming the likely intended one), a missing or malformed entry, a
--- distortion model or coefficient count tagpose does not have. In OpenCV files, whose
--- samples store much else (`avg_reprojection_error`, `extrinsic_parameters`, ...), unknown
--- keys are listed in `info.ignored` instead, unless they look like a misspelling of a key that
--- is read.
+-- The format is told by the file's name: `.lua` Lua, `.yaml` or `.yml` YAML, `.xml` XML, `.json`
+-- JSON; another name by its text (`return` or `--` first: Lua; `<`: XML; `{`: JSON; else YAML).
+-- Anything not understood is refused with its line: an unknown key (naming the likely intended
+-- one), a missing or malformed entry, a distortion model or coefficient count tagpose does not
+-- have, a camera no later call would take (`fx = 1e-320`). In OpenCV files, whose samples
+-- store much else (`avg_reprojection_error`, `extrinsic_parameters`, ...), unknown keys are
+-- listed in `info.ignored` instead, unless they look like a misspelling of a key that is read.
 --
 -- The camera is that of the image the calibration was made on (`K`, `D`): corners detected
 -- on a rectified image (`image_rect`) belong instead to `info.projection` without distortion.
 --
--- The formats are read by `tagpose.calibration.lua_file`, `tagpose.calibration.ros` and
--- `tagpose.calibration.opencv` (the YAML entries by `tagpose.calibration.entries`), with the
--- messages, suggestions and lens models of `tagpose.calibration.common`.
+-- The formats are read by `tagpose.calibration.lua_file`, `tagpose.calibration.ros`,
+-- `tagpose.calibration.opencv` (YAML through `tagpose.calibration.entries`, XML and JSON
+-- through `tagpose.calibration.storage`) and `tagpose.calibration.kalibr`, with the messages,
+-- suggestions and lens models of `tagpose.calibration.common`. The XML, JSON and Kalibr readers
+-- are loaded when a file of theirs is first read.
 -- @module tagpose.formats.calibration
 
 local common = require("tagpose.formats.calibration.common")
@@ -56,64 +63,113 @@ M.MAX_BYTES = 1048576
 -- @treturn string|nil
 M.suggest = common.suggest
 
-local READERS = { ros = ros.calibration, camera_info = ros.camera_info, opencv = opencv.read }
+local READERS = { ros = ros.calibration, camera_info = ros.camera_info, opencv = opencv.read,
+  kalibr = function(y, info, which) return require("tagpose.formats.calibration.kalibr").read(y,
+    info, which) end }
 
-local function yaml_camera(text, name)
-  local y = entries.open(text, name)
+-- the record of a YAML, XML or JSON file (XML and JSON are OpenCV's FileStorage; their reader is
+-- loaded when first needed)
+local RECORDS = { yaml = entries.open,
+  xml = function(text, name) return require("tagpose.formats.calibration.storage").xml(text,
+    name) end,
+  json = function(text, name) return require("tagpose.formats.calibration.storage").json(text,
+    name) end }
+
+-- the camera of a YAML, XML or JSON file
+local function data_camera(kind, text, name, which)
+  local y = RECORDS[kind](text, name)
+  if which ~= nil and y.format ~= "kalibr" then
+    entries.fail(y, nil, "camera '" .. which .. "' named, but this is not a Kalibr camchain (an "
+      .. y.format .. " file has one camera)")
+  end
   local info = { format = y.format, path = name }
-  local k, d, model = READERS[y.format](y, info)
+  local k, d, model = READERS[y.format](y, info, which)
   info.distortion_model = model
   local top = y.top
   local at = top.camera_matrix or top.K or top.k or top.cameraMatrix
+  if y.format == "kalibr" then at = entries.line(y, y.doc[info.camera], "intrinsics") end
   local camera = common.build(k, d, model, function(reason) entries.fail(y, at, reason) end)
   return camera, info
 end
 
-local function is_lua(text, name)
-  if name:match("%.[lL][uU][aA]$") then return true end
-  if name:match("%.[yY][aA]?[mM][lL]$") then return false end
-  local first = text:match("^%s*(%S%S?)") -- "re"turn or "--"
-  return first == "--" or (first == "re" and text:match("^%s*return[%s{]") ~= nil)
+-- the format of a file: by its name's ending, else by how its text starts
+local function kind_of(text, name)
+  local ext = (name:match("%.(%w+)$") or ""):lower()
+  if ext == "lua" then return "lua" end
+  if ext == "yaml" or ext == "yml" then return "yaml" end
+  if ext == "xml" or ext == "json" then return ext end
+  local first = text:match("^\239\187\191") and text:match("^...%s*(%S%S?)")
+    or text:match("^%s*(%S%S?)") -- "re"turn or "--"
+  if first == "--" or (first == "re" and text:match("^%s*return[%s{]") ~= nil) then return "lua" end
+  if first and first:sub(1, 1) == "<" then return "xml" end
+  if first and first:sub(1, 1) == "{" then return "json" end
+  return "yaml"
 end
 
 --- Read a calibration from its text.
 -- @tparam string text the file's text
--- @tparam string name the file's name: its ending (`.lua`, `.yaml`, `.yml`) tells the format,
---   and it names the file in messages
+-- @tparam string name the file's name: its ending (`.lua`, `.yaml`, `.yml`, `.xml`, `.json`)
+--   tells the format, and it names the file in messages
+-- @tparam[opt] string camera for a Kalibr camchain, the camera to read (default `"cam0"`)
 -- @treturn table camera `{fx =, fy =, cx =, cy =, model =, distortion =}`
--- @treturn table info: `format` (`"lua"`, `"ros"`, `"camera_info"` or `"opencv"`), `path`,
---   and what the file gives of `width`, `height` (pixels), `name`, `distortion_model`,
---   `rectification` (flat 3x3), `projection` (flat 3x4), `ignored` (OpenCV keys not read) and,
---   from a Lua file, `tag_size` (a number or `{[id] = size, default = size}`), `block_size`,
---   `unit` (the name of the unit of `tag_size`)
+-- @treturn table info: `format` (`"lua"`, `"ros"`, `"camera_info"`, `"opencv"` or
+--   `"kalibr"`), `path`, and what the file gives of `width`, `height` (pixels), `name`,
+--   `distortion_model` (the ROS name of the lens model read), `rectification` (flat 3x3),
+--   `projection` (flat 3x4), `ignored` (OpenCV keys not read), from a Kalibr camchain `camera`,
+--   `cameras`, `rostopic`, `T_cam_imu`, `T_cn_cnm1` (flat 4x4), `timeshift_cam_imu`,
+--   `cam_overlaps`, and from a Lua file `tag_size` (a number or `{[id] = size, default =
+--   size}`), `block_size`, `unit` (the name of the unit of `tag_size`)
 -- @return nil, string `"calibration: NAME:LINE: reason"`
--- @raise `bad argument #n to 'decode' (...)` when `text` or `name` is not a string
-function M.decode(text, name)
+-- @raise `bad argument #n to 'decode' (...)` when `text` or `name` is not a string, or `camera`
+--   neither nil nor a string
+function M.decode(text, name, camera)
   if type(text) ~= "string" then
     error("bad argument #1 to 'decode' (string expected, got " .. type(text) .. ")", 2)
   end
   if type(name) ~= "string" then
     error("bad argument #2 to 'decode' (string expected, got " .. type(name) .. ")", 2)
   end
-  local ok, camera, info = pcall(is_lua(text, name) and lua_file.read or yaml_camera, text, name)
-  if ok then return camera, info end
-  if getmetatable(camera) == common.Failure then return nil, camera.message end
-  error(camera, 0)
+  if camera ~= nil and type(camera) ~= "string" then
+    error("bad argument #3 to 'decode' (string expected for the camera's name, got "
+      .. type(camera) .. ")", 2)
+  end
+  local kind = kind_of(text, name)
+  local ok, result, info
+  if kind == "lua" then
+    if camera ~= nil then
+      return nil, "calibration: " .. name .. ": camera '" .. camera .. "' named, but this is not"
+        .. " a Kalibr camchain (a Lua camera file has one camera)"
+    end
+    ok, result, info = pcall(lua_file.read, text, name)
+  else
+    ok, result, info = pcall(data_camera, kind, text, name, camera)
+  end
+  if ok then return result, info end
+  if getmetatable(result) == common.Failure then return nil, result.message end
+  error(result, 0)
 end
 
---- Read a calibration file (Lua camera file, ROS or OpenCV YAML; see the module's header).
+--- Read a calibration file (a Lua camera file, ROS YAML, OpenCV YAML, XML or JSON, a Kalibr
+-- camchain; see the module's header).
 -- @tparam string path
+-- @tparam[opt] string camera for a Kalibr camchain, the camera to read (default `"cam0"`)
 -- @treturn table camera `{fx =, fy =, cx =, cy =, model =, distortion =}`
 -- @treturn table info (see `decode`)
 -- @return nil, string `"calibration: PATH:LINE: reason"` (or `"calibration: PATH: reason"`
 --   when the file cannot be read)
--- @raise `bad argument #1 to 'read' (...)` when `path` is not a string
+-- @raise `bad argument #n to 'read' (...)` when `path` is not a string, or `camera` neither
+--   nil nor a string
 -- @usage
 -- local camera, info = assert(tagpose.calibration.read("ost.yaml"))
 -- local pose = tagpose.solve(corners, camera, 0.024)
-function M.read(path)
+-- local right = assert(tagpose.calibration.read("camchain.yaml", "cam1"))
+function M.read(path, camera)
   if type(path) ~= "string" then
     error("bad argument #1 to 'read' (string expected, got " .. type(path) .. ")", 2)
+  end
+  if camera ~= nil and type(camera) ~= "string" then
+    error("bad argument #2 to 'read' (string expected for the camera's name, got "
+      .. type(camera) .. ")", 2)
   end
   local f, err = io.open(path, "rb")
   if not f then return nil, "calibration: " .. tostring(err) end
@@ -127,7 +183,7 @@ function M.read(path)
     return nil, "calibration: " .. path .. ": larger than " .. M.MAX_BYTES .. " bytes (a"
       .. " calibration is a few lines)"
   end
-  return M.decode(text, path)
+  return M.decode(text, path, camera)
 end
 
 return M

@@ -11,9 +11,12 @@
 
 local compat = require("tagpose.core.compat")
 local luadata = require("tagpose.formats.luadata")
+local camera_model = require("tagpose.core.camera")
 local common = require("tagpose.formats.calibration.common")
 
 local is_finite = compat.is_finite
+local MIN_FOCAL, MAX_FOCAL = camera_model.MIN_FOCAL, camera_model.MAX_FOCAL
+local MAX_CENTRE = camera_model.MAX_CENTRE
 local concat = table.concat
 local describe, key_name, sorted_keys = common.describe, common.key_name, common.sorted_keys
 local is_integer, suggest = common.is_integer, common.suggest
@@ -63,12 +66,20 @@ local function check_intrinsics(r, root_line)
     if not (is_finite(v) and v > 0) then
       fail(r, lines[k], k .. ": positive number expected, got " .. describe(v))
     end
+    if not (v >= MIN_FOCAL and v <= MAX_FOCAL) then
+      fail(r, lines[k], ("%s: a focal length in pixels between %g and %g expected, got %s")
+        :format(k, MIN_FOCAL, MAX_FOCAL, describe(v)))
+    end
   end
   for _, k in ipairs({ "cx", "cy" }) do
     local v = t[k]
     if v == nil then fail(r, root_line, "no " .. k .. " (the principal point in pixels)") end
     if not is_finite(v) then
       fail(r, lines[k], k .. ": finite number expected, got " .. describe(v))
+    end
+    if not (v >= -MAX_CENTRE and v <= MAX_CENTRE) then
+      fail(r, lines[k], ("%s: a principal point coordinate in pixels within %g expected, got %s")
+        :format(k, MAX_CENTRE, describe(v)))
     end
   end
 end

@@ -1,4 +1,5 @@
---- OpenCV FileStorage calibration files (`%YAML:1.0`, `!!opencv-matrix` entries).
+--- OpenCV FileStorage calibration files: YAML (`%YAML:1.0`, `!!opencv-matrix` entries), and XML
+-- and JSON as `tagpose.calibration.storage` reads them into the same record.
 --
 -- The entries read are those OpenCV's calibration samples write (`camera_matrix`,
 -- `distortion_coefficients`, `image_width`, `image_height`, `fisheye_model`) or the short
@@ -39,9 +40,10 @@ local function ignored_keys(y)
   local read = {}
   for _, n in ipairs(CV_READ) do read[n] = true end
   local ignored = {}
+  local suggest = common.suggester(CV_READ) -- once per file: a file may hold many keys
   for _, key in ipairs(common.sorted_keys(y.doc)) do
     if not read[key] then
-      local hint = type(key) == "string" and common.suggest(key, CV_READ)
+      local hint = suggest(key)
       if hint and #key > 2 then
         fail(y, y.top[key], "unknown key " .. key_name(key) .. " (did you mean " .. hint .. "?)")
       end
@@ -62,6 +64,9 @@ function M.read(y, info)
   local mk = one_of(y, entries.CV_MATRIX, "camera matrices")
   local dk = one_of(y, CV_DISTORTION, "sets of distortion coefficients")
   info.ignored = ignored_keys(y)
+  if not mk then
+    fail(y, 1, "no camera matrix (camera_matrix, cameraMatrix or K, an opencv-matrix)")
+  end
   local data, rows, cols = entries.matrix(y, doc, mk, true)
   local k = entries.shape(y, data, rows, cols, 3, 3, mk)
   if not dk then
