@@ -4,6 +4,7 @@
 local tagpose = require("tagpose")
 local geometry = require("support.geometry")
 local assertions = require("support.assertions")
+local layouts = require("support.layouts")
 
 local sqrt, sin, cos, rad = math.sqrt, math.sin, math.cos, math.rad
 
@@ -118,7 +119,68 @@ local function solve(tags, options)
   return tagpose.block.solve(detections_of(tags), camera, TAG, BLOCK, options)
 end
 
+-- A cube glued by hand: tags 0-5 of side TAG on the faces of the cube of side BLOCK
+-- (tagpose.layout.cube's faces, written out in support/faces.lua), each off its face's centre
+-- by U(-2, 2) mm in x and y, turned U(-2, 2)° on the face and tilted U(0, 0.5)°, and tag 3
+-- (face -y) a smaller one, 18 mm. Returns the nominal layout and the glued one (the truth).
+local function glued_cube(rng)
+  local nominal, truth = layouts.cube(rng, TAG, BLOCK, 2, 2, 0.5)
+  nominal.tags[3].size, truth.tags[3].size = 0.018, 0.018
+  return nominal, truth
+end
+
+-- A calibration log of a layout: sessions of n frames with the cube set down on its faces -z,
+-- +x and +y, a camera circling it (support/layouts.session), corner noise sigma.
+local function calibration_log(layout, cam, rng, n, sigma)
+  local frames = {}
+  for _, down in ipairs({ { 0, 0, -1 }, { 1, 0, 0 }, { 0, 1, 0 } }) do
+    for _, f in ipairs(layouts.session(layout, cam, rng, n, down, sigma)) do
+      frames[#frames + 1] = f
+    end
+  end
+  return frames
+end
+
+-- One frame of `count` copies of a layout's cube side by side across the view (centres about
+-- 85 mm apart, 0.25-0.35 away), each turned at random: the detections of the tags facing the
+-- camera (within 70°, inside the image, noise sigma), and each copy's pose {r =, t =} (block
+-- -> camera).
+local function copies(layout, cam, rng, count, sigma)
+  local dets, poses = {}, {}
+  for c = 1, count do
+    local r = geometry.axis_angle(rng.normal(), rng.normal(), rng.normal(),
+      rng.uniform(0, math.pi))
+    local t = { (c - (count + 1) / 2) * 0.085 + rng.uniform(-0.005, 0.005),
+      rng.uniform(-0.03, 0.03), rng.uniform(0.25, 0.35) }
+    for _, d in ipairs(layouts.detections(layout, cam, r, t, rng, sigma, 70)) do
+      dets[#dets + 1] = d
+    end
+    poses[c] = { r = r, t = t }
+  end
+  return dets, poses
+end
+
+-- The errors of blocks against the true poses of the copies: for each copy, the block whose
+-- centre is nearest (within half a block), its centre's distance and its rotation's angle
+-- (degrees, absolute: the block frame of a layout whose ids tell the tags apart); nil for a
+-- copy no block found.
+local function errors(blocks, poses)
+  local out = {}
+  for c, pose in ipairs(poses) do
+    local best, best_d = nil, 0.5 * BLOCK
+    for _, b in ipairs(blocks) do
+      local p = b.position
+      local d = sqrt((p.x - pose.t[1]) ^ 2 + (p.y - pose.t[2]) ^ 2 + (p.z - pose.t[3]) ^ 2)
+      if d < best_d then best, best_d = b, d end
+    end
+    out[c] = best and { centre = best_d, faces = best.faces,
+      angle = assertions.rotation_angle(pose.r, best.rotation) } or false
+  end
+  return out
+end
+
 B.camera, B.TAG, B.BLOCK, B.FACES, B.SYMMETRIES = camera, TAG, BLOCK, FACES, SYMMETRIES
+B.glued_cube, B.calibration_log, B.copies, B.errors = glued_cube, calibration_log, copies, errors
 B.apply, B.symmetric_error, B.robot_camera, B.view, B.yaw = apply, symmetric_error,
   robot_camera, view, yaw
 B.random_block, B.detections_of, B.solve = random_block, detections_of, solve

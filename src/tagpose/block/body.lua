@@ -20,7 +20,7 @@
 --   builds from it. Detections of other ids are skipped.
 --
 -- The record: `symmetric`, `places`, `sizes` (symmetric: `tag_size`, or the layout's one size),
--- `block_size` (given, or twice the mean distance of a layout's tags from its centre),
+-- `block_size` (given, or twice the median distance of a layout's tags from its centre),
 -- `source` (the option a skipped detection's reason names, nil for the standard cube).
 -- @module tagpose.block.body
 
@@ -43,8 +43,9 @@ M.MAX_RATIO = 100
 --- A layout's tag lies on a face of the cube when its z axis is within this angle (radians) of
 -- the face's inward normal...
 M.FACE_ANGLE = rad(20)
---- ... and its centre within this distance (× block_size) of the face's plane.
-M.FACE_DISTANCE = 0.05
+--- ... and its centre within this distance (× block_size) of the face's plane (1.1 mm on a
+-- 55 mm cube: a glued tag lies on its face).
+M.FACE_DISTANCE = 0.02
 --- A symmetric layout's tags are turned by the cube's rotations to within this angle
 -- (radians), and the places they give agree to within this distance (× block_size).
 M.SYMMETRY_TOLERANCE = 1e-3
@@ -138,11 +139,11 @@ local function face_of(t)
   return name, d, off, acos(c < 1 and c or 1)
 end
 
--- The block size a read layout's tags make (twice their mean distance from the centre along
--- their faces' normals), or the one given, checked: every tag on a face of the cube. Returns
+-- The block size a read layout's tags make (twice their median distance from the centre
+-- along their faces' normals), or the one given, checked: every tag on a face of the cube. Returns
 -- it, or nil, the argument to blame and what is wrong.
 local function cube_size(tags, block_size)
-  local sum = 0
+  local distances = {}
   for _, id in ipairs(tags.ids) do
     local name, d, _, angle = face_of(tags[id])
     if angle > M.FACE_ANGLE then
@@ -150,14 +151,17 @@ local function cube_size(tags, block_size)
         .. "one's z axis is %.1f° from the inward normal of the nearest (%s)")
         :format(tostring(id), deg(angle), name)
     end
-    sum = sum + d
+    distances[#distances + 1] = d
   end
   local given = block_size ~= nil
   if given then
     local problem = args.check_size(block_size, "block_size")
     if problem then return nil, 4, problem end
   else
-    block_size = 2 * sum / #tags.ids
+    -- twice the median distance (one tag placed wrong is then the one blamed)
+    table.sort(distances)
+    local n = #distances
+    block_size = distances[math.floor((n + 1) / 2)] + distances[math.floor(n / 2) + 1]
     if not (block_size > 0) then
       return nil, 5, "options.layout: not a cube (its tags face away from its centre)"
     end
@@ -178,28 +182,33 @@ local function cube_size(tags, block_size)
   return block_size
 end
 
+-- tag_size[key] (key nil: tag_size) is `got`, the layout says `want` (of tag `id`, or of all
+-- its tags): the misuse, or nil when they agree.
+local function contradicts(got, want, key, id)
+  if got ~= nil and abs(got - want) <= M.SIZE_TOLERANCE * want then return nil end
+  return ("%s is %s, but %s (with a layout, tag_size may be nil: the layout gives each tag's "
+    .. "size)"):format(key ~= nil and "tag_size[" .. tostring(key) .. "]" or "tag_size",
+    got == nil and "no size" or ("%g"):format(got), id == nil
+    and ("the tags of options.layout are of size %g"):format(want)
+    or ("options.layout.tags[%s].size is %g"):format(tostring(id), want))
+end
+
 -- With a layout, tag_size is nil or gives each tag the layout's size (a symmetric layout's
 -- one size, `one`, whatever the id); or the misuse.
 local function check_tag_size(tag_size, tags, one)
   if tag_size == nil then return nil end
   local problem = args.check_sizes(tag_size, "tag_size")
   if problem then return problem end
-  local function contradicts(got, want, id)
-    if got ~= nil and abs(got - want) <= M.SIZE_TOLERANCE * want then return nil end
-    return ("tag_size%s %s contradicts options.layout: %s (with a layout, tag_size may be nil: "
-      .. "the layout gives each tag's size)"):format(id and "[" .. tostring(id) .. "]" or "",
-      describe(got), one and ("its tags are of size %g"):format(want)
-      or ("tags[%s].size is %g"):format(tostring(id), want))
-  end
+  local by_id = type(tag_size) == "table"
   if one then
-    for key, size in pairs(type(tag_size) == "table" and tag_size or { tag_size }) do
-      problem = contradicts(size, one, type(tag_size) == "table" and key)
+    for key, size in pairs(by_id and tag_size or { tag_size }) do
+      problem = contradicts(size, one, by_id and key or nil)
       if problem then return problem end
     end
     return nil
   end
   for _, id in ipairs(tags.ids) do
-    problem = contradicts(size_of(tag_size, id), tags[id].size, type(tag_size) == "table" and id)
+    problem = contradicts(size_of(tag_size, id), tags[id].size, by_id and id or nil, id)
     if problem then return problem end
   end
 end

@@ -122,6 +122,9 @@ function M.solve(detections, camera, tag_size, block_size, options)
   if problem then arg_error(2, problem) end
   -- (the sizes are checked before the options unless a layout gives them)
   local settings, misuse = read_options(options)
+  if not settings and type(options) == "table" and options.layout ~= nil then
+    arg_error(5, misuse)
+  end
   local body, n
   body, n, problem = body_model.new(tag_size, block_size, settings)
   if not body then arg_error(n, problem) end
