@@ -52,10 +52,13 @@ end
 --   `tagpose.solve` takes them (four points `{u, v}` or `{x =, y =}` in detection order, pixels)
 -- @tparam table camera `{fx =, fy =, cx =, cy =}` in pixels, optionally `distortion` and
 --   `model` (see `tagpose.camera`)
--- @tparam number|table tag_size side of the tags' black squares (> 0); lengths come out in its
---   unit. Or the sides by tag id, `{[id] = size, default = size}` (`default` optional: a tag
---   with no size is skipped, with its reason)
--- @tparam number block_size side of the cube (> `tag_size`)
+-- @tparam number|table|nil tag_size side of the tags' black squares (> 0); lengths come out in
+--   its unit. Or the sides by tag id, `{[id] = size, default = size}` (`default` optional: a tag
+--   with no size is skipped, with its reason). With `options.layout`: nil (the layout's sizes),
+--   or sizes that agree with the layout's
+-- @tparam number|nil block_size side of the cube (> `tag_size`). With `options.layout`: nil
+--   (twice the median distance of its tags from its centre along their faces' normals), or the
+--   side of the cube on whose faces its tags lie
 -- @tparam[opt] table options
 --
 --   - `up`: a vector `{x =, y =, z =}` (or `{x, y, z}`) in the camera frame pointing up
@@ -83,9 +86,18 @@ end
 --   - `previous`: the blocks returned for the previous frame: a block found again keeps its
 --     `id` and the symmetric frame nearest its previous rotation, and a one-face block keeps
 --     the candidate that continues a decided orientation;
+--   - `layout`: the cube, when it is not the standard one: a layout `{tags = {[id] = {size =,
+--     position =, quaternion =}}}` (`tagpose.layout`) of one cube, every block in view a copy
+--     of it, its tags on the cube's faces; its ids tell its tags apart (the block frame is the
+--     layout's, detections with other ids are skipped), unless it has `symmetric = true`: then
+--     a tag of any id may be any of its tags, on any face and in any turn (the layout's tags
+--     turned by the cube's 24 rotations; they must be of one size and where the rotations put
+--     one another). Default: the standard cube, `tagpose.layout.cube(tag_size, block_size)`
+--     with `symmetric = true`, each id's size from `tag_size`. A layout calibrated from a log
+--     (`tagpose.layout.calibrate`, `tagpose-calibrate`) goes here;
 --   - `faces`: a table tag id → face (`"+x"`, `"-x"`, `"+y"`, `"-y"`, `"+z"`, `"-z"`, or the
---     nested 3×3 tag → block rotation, one of the cube's) when the faces can be told apart: the
---     block frame is then absolute and detections with other ids are skipped;
+--     nested 3×3 tag → block rotation, one of the cube's) when the faces can be told apart:
+--     the layout `tagpose.layout.cube(tag_size, block_size, faces)` (not with `layout`);
 --   - `max_iterations`: bound on the linearisations of one joint fit (default 20);
 --   - `sigma`: the corner noise in pixels, for `covariance` and `confidence` (default: the
 --     frame's block residuals pooled with `tagpose.uncertainty.DEFAULT_SIGMA`).
@@ -105,12 +117,16 @@ end
 --   (given or found with `"auto"`; nil when none)
 -- @return nil, string when no detection gives a tag pose (the message says why)
 -- @raise `bad argument #n to 'solve' (...)` when an argument has the wrong type or range
---   (`detections` not a table, the camera, the sizes, the options; a malformed detection
---   inside the array is skipped instead, with its reason)
+--   (`detections` not a table, the camera, the sizes, the options, sizes that contradict
+--   `options.layout`, a layout that is not of one cube; a malformed detection inside the array
+--   is skipped instead, with its reason)
 -- @usage
 -- local blocks = tagpose.block.solve({{id = 0, corners = c1}, {id = 0, corners = c2}},
 --   camera, 0.024, 0.055, {up = {x = 0, y = -0.9, z = -0.4}})
 -- for _, b in ipairs(blocks) do print(b.id, b.position.x, b.position.y, b.position.z) end
+-- -- copies of a cube calibrated from its log
+-- local cube = assert(tagpose.layout.read("calibrated.yaml"))
+-- blocks = tagpose.block.solve(detections, camera, nil, nil, {layout = cube})
 function M.solve(detections, camera, tag_size, block_size, options)
   if type(detections) ~= "table" then
     arg_error(1, "array of detections expected, got " .. type(detections))
