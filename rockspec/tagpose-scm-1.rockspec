@@ -74,6 +74,7 @@ build = {
     ["tagpose.layout.solve"] = "src/tagpose/layout/solve.lua",
     ["tagpose.track"] = "src/tagpose/track.lua",
     ["tagpose.tracker"] = "src/tagpose/tracker.lua",
+    ["tagpose.transform"] = "src/tagpose/transform.lua",
     ["tagpose.uncertainty"] = "src/tagpose/uncertainty/init.lua",
     ["tagpose.uncertainty.matrix"] = "src/tagpose/uncertainty/matrix.lua",
     ["tagpose.uncertainty.model"] = "src/tagpose/uncertainty/model.lua",
