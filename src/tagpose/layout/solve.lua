@@ -2,7 +2,9 @@
 --
 -- 1. Every detection of a tag of the layout is solved alone (the refined single-tag solve): one
 --    or two poses (the planar ambiguity), each implying a body pose `R_b = R·Qᵀ`,
---    `t_b = t - R_b·p` for the tag placed at `(Q, p)` on the body. These are the starts.
+--    `t_b = t - R_b·p` for the tag placed at `(Q, p)` on the body. These are the starts. A tag
+--    that cannot be solved alone (seen nearly edge-on, its noisy corners not a convex
+--    quadrilateral) still joins the joint fit with its corners, when another tag gives starts.
 -- 2. One tag seen: its candidates are the body's minima (the same least-squares problem), so
 --    that a layout seen by one tag has the pose and uncertainty `tagpose.solve` gives the tag.
 -- 3. Otherwise the joint fit (`tagpose.layout.fit`: least squares over every corner through the
@@ -173,14 +175,16 @@ local function get_start(k, r)
   return start_t[o + 1], start_t[o + 2], start_t[o + 3]
 end
 
--- The usable detections: those of tags of the layout with four finite corners, solved alone;
--- the others go into skipped with their reason. Fills points, pixels and the starts.
+-- The usable detections: those of tags of the layout with four finite corners, each solved
+-- alone for the starts; a tag that cannot be solved alone (seen nearly edge-on, its noisy
+-- corners not a convex quadrilateral) is a passenger: its corners join the joint fit, it gives
+-- no start. The others go into skipped with their reason. Fills points, pixels and the starts.
 local function gather(detections, camera, tags, skipped)
   local used, n, starts = {}, 0, 0
   local first_of = {}
   for i = 1, #detections do
     local d = detections[i]
-    local reason, tag, pose
+    local reason, tag, pose, passenger
     if type(d) ~= "table" then
       reason = "layout: detection is not a table {id =, corners =}"
     else
@@ -197,17 +201,18 @@ local function gather(detections, camera, tags, skipped)
           .. first_of[d.id] .. " is used)"
       else
         pose, reason = solve_tag(camera, tag.size)
+        passenger = not pose
       end
     end
-    if pose then
+    if pose or passenger then
       n = n + 1
       first_of[d.id] = i
-      used[n] = { index = i, id = d.id, tag = tag, pose = pose }
+      used[n] = { index = i, id = d.id, tag = tag, pose = pose, reason = reason }
       local o = 8 * (n - 1)
       for k = 1, 8 do pixels[o + k] = corners[k] end
       local p, q = tag.points, 12 * (n - 1)
       for k = 1, 12 do points[q + k] = p[k] end
-      for k = 1, #pose do
+      for k = 1, pose and #pose or 0 do
         starts = starts + 1
         add_start(starts, pose[k], tag)
       end
@@ -218,6 +223,8 @@ local function gather(detections, camera, tags, skipped)
   end
   return used, n, starts
 end
+
+local function by_index(a, b) return a.index < b.index end
 
 -- The public pose table of a minimum (its covariance set by `uncertain`).
 local function result(r, x, y, z, sse, k, npts)
@@ -352,7 +359,13 @@ end
 function M.solve(detections, camera, tags, o)
   local skipped = {}
   local used, n, starts = gather(detections, camera, tags, skipped)
-  if n == 0 then
+  if starts == 0 then
+    -- no tag solved alone: the passengers are skipped with their reasons
+    for i = 1, n do
+      local u = used[i]
+      skipped[#skipped + 1] = { index = u.index, id = u.id, reason = u.reason }
+    end
+    table.sort(skipped, by_index)
     local why = skipped[1] and skipped[1].reason
     return nil, "layout: no detection gives a pose of a tag of the layout"
       .. (why and " (detection " .. skipped[1].index .. ": " .. why .. ")" or "")
