@@ -6,6 +6,8 @@ local tagpose = require("tagpose")
 local geometry = require("support.geometry")
 local assertions = require("support.assertions")
 local layouts = require("support.layouts")
+local run = require("support.run")
+local compat = require("tagpose.core.compat")
 
 local sqrt, abs, pi = math.sqrt, math.abs, math.pi
 local raised = assertions.raised
@@ -307,6 +309,22 @@ describe("tagpose.transform", function()
       local p = transform.inverse({ position = good.position, quaternion = good.quaternion,
         rotation = { { 1 + 0.5 * e, 0, 0 }, { 0, 1, 0 }, { 0, 0, 1 } } })
       assert.vector_near({ -1, -2, -3 }, p.position, 1e-6)
+    end)
+  end)
+  describe("docs/conventions.md", function()
+    it("prints what its pose algebra example says it prints", function()
+      local text = run.read("docs/conventions.md")
+      local section = text:match("\n## Pose algebra\n(.-)\n## ") or
+        text:match("\n## Pose algebra\n(.*)$")
+      local code = section:match("```lua\n(.-)```")
+      local shown = section:match("prints[^\n]*\n\n```\n(.-)```")
+      assert.is_string(code)
+      assert.is_string(shown)
+      local lines = {}
+      local env = setmetatable({ print = function(s) lines[#lines + 1] = s end },
+        { __index = _G })
+      assert(compat.load_text(code, "=docs/conventions.md", env))()
+      assert.equal(shown, table.concat(lines, "\n") .. "\n")
     end)
   end)
 end)
