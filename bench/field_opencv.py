@@ -3,7 +3,7 @@
 
     lua5.4 bench/make_field.lua DIR SEED [options]
     lua5.4 bench/field_solve.lua DIR
-    /usr/bin/python3 bench/field_opencv.py DIR [--map PATH]
+    /usr/bin/python3 bench/field_opencv.py DIR [DIR ...] [--map PATH]
 
 For every view of DIR (corners.csv, camera.lua, truth.csv as bench/make_field.lua writes them)
 it runs cv2.solvePnP with SOLVEPNP_SQPNP over every corner of every tag seen, then
@@ -12,7 +12,8 @@ cv2.solvePnPRefineLM, the object points straight from the WPILib map (a tag's co
 the face, y to the viewer's right, z up; nothing of tagpose's tag frame), and puts the camera on
 the field (-R^T t). It reads tagpose's cameras from DIR/tagpose.csv (bench/field_solve.lua) and
 prints, for both, the views solved and the camera position error against the truth: median,
-95th percentile and views more than 0.5 m off; over all views and by the number of tags seen.
+95th percentile and views more than 0.5 m off; over all views and by the number of tags seen;
+given several sets, for each and for all of them together.
 
 A measuring tool, not part of the library: it needs Debian's python3-numpy and python3-opencv
 (they belong to /usr/bin/python3).
@@ -98,36 +99,51 @@ def stats(errors, n):
         len(e), n, np.median(e), np.percentile(e, 95), int(np.sum(e > 0.5)))
 
 
-def main():
-    args = sys.argv[1:]
-    if not args or args[0].startswith("-"):
-        sys.exit(__doc__)
-    dirname = args[0].rstrip("/")
-    path = "bench/field/2024-crescendo.json"
-    if len(args) == 3 and args[1] == "--map":
-        path = args[2]
-    elif len(args) != 1:
-        sys.exit(__doc__)
+def errors_of(dirname, path):
+    """Per view: (tags seen, tagpose's error, OpenCV's error or None), and OpenCV's time."""
     K, D, s = read_camera(dirname + "/camera.lua")
     truth = {int(r["frame"]): r for r in read_rows(dirname + "/truth.csv")}
-    cv_cams, n, cv_seconds = opencv_cameras(dirname, field_corners(path, s), K, D)
+    cv_cams, n, seconds = opencv_cameras(dirname, field_corners(path, s), K, D)
     tp_cams = {int(r["frame"]): np.array([r["x"], r["y"], r["z"]])
                for r in read_rows(dirname + "/tagpose.csv")}
+    rows = []
+    for f, t in sorted(truth.items()):
+        at = np.array([t["x"], t["y"], t["z"]])
+        e = [float(np.linalg.norm(c[f] - at)) if f in c else None for c in (tp_cams, cv_cams)]
+        rows.append((int(t["tags"]), e[0], e[1]))
+    return rows, seconds
+
+
+def report(name, rows):
     groups = [("all views", lambda k: True), ("1 tag", lambda k: k == 1),
               ("2 tags", lambda k: k == 2), ("3+ tags", lambda k: k >= 3)]
-    print("%s: %d views, camera position error against the truth" % (dirname, n))
-    for name, keep in groups:
-        frames = [f for f, t in truth.items() if keep(int(t["tags"]))]
-        if not frames:
+    print("%s: %d views, camera position error against the truth" % (name, len(rows)))
+    for group, keep in groups:
+        kept = [r for r in rows if keep(r[0])]
+        if not kept:
             continue
-        for solver, cams in (("tagpose", tp_cams), ("OpenCV SQPNP+LM", cv_cams)):
-            errors = []
-            for f in frames:
-                if f in cams:
-                    t = truth[f]
-                    errors.append(float(np.linalg.norm(cams[f] - [t["x"], t["y"], t["z"]])))
-            print("  %-10s %-16s %s" % (name, solver, stats(errors, len(frames))))
-    print("  OpenCV: %.0f us per view (solvePnP SQPNP + solvePnPRefineLM)" % (1e6 * cv_seconds / n))
+        for k, solver in ((1, "tagpose"), (2, "OpenCV SQPNP+LM")):
+            errors = [r[k] for r in kept if r[k] is not None]
+            print("  %-10s %-16s %s" % (group, solver, stats(errors, len(kept))))
+
+
+def main():
+    args = sys.argv[1:]
+    path = "bench/field/2024-crescendo.json"
+    if len(args) >= 2 and args[-2] == "--map":
+        path, args = args[-1], args[:-2]
+    if not args or any(a.startswith("-") for a in args):
+        sys.exit(__doc__)
+    pooled, seconds = [], 0.0
+    for dirname in args:
+        rows, t = errors_of(dirname.rstrip("/"), path)
+        report(dirname.rstrip("/"), rows)
+        pooled += rows
+        seconds += t
+    if len(args) > 1:
+        report("all %d sets" % len(args), pooled)
+    print("  OpenCV: %.0f us per view (solvePnP SQPNP + solvePnPRefineLM, from Python)"
+          % (1e6 * seconds / len(pooled)))
 
 
 if __name__ == "__main__":
