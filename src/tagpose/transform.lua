@@ -119,7 +119,7 @@ local function read_pose(p, n, fname, r)
 end
 
 -- The public pose of a flat rotation and a translation.
-local function pose(r, x, y, z)
+local function new_pose(r, x, y, z)
   local w, qx, qy, qz = rotation.to_quaternion(r)
   return {
     position = { x = x, y = y, z = z },
@@ -139,13 +139,14 @@ end
 -- @raise `bad argument #1 to 'inverse' (...)` when pose is not one (missing or non-finite
 --   fields, a matrix that is not a rotation, a rotation and a quaternion that disagree)
 -- @usage
--- local camera_on_field = tagpose.transform.inverse(tagpose.layout.solve(dets, camera, field))
--- print(camera_on_field.position.x, camera_on_field.position.y, camera_on_field.position.z)
-function M.inverse(p)
+-- local body = assert(tagpose.layout.solve(detections, camera, field))
+-- local on_field = tagpose.transform.inverse(body)   -- the camera on the field
+-- print(on_field.position.x, on_field.position.y, on_field.position.z)
+function M.inverse(pose)
   local r = {}
-  local x, y, z = read_pose(p, 1, "inverse", r)
+  local x, y, z = read_pose(pose, 1, "inverse", r)
   rotation.transpose(r, r)
-  return pose(r, -(r[1] * x + r[2] * y + r[3] * z), -(r[4] * x + r[5] * y + r[6] * z),
+  return new_pose(r, -(r[1] * x + r[2] * y + r[3] * z), -(r[4] * x + r[5] * y + r[6] * z),
     -(r[7] * x + r[8] * y + r[9] * z))
 end
 
@@ -166,7 +167,7 @@ function M.compose(a, b)
   local x = ra[1] * bx + ra[2] * by + ra[3] * bz + ax
   local y = ra[4] * bx + ra[5] * by + ra[6] * bz + ay
   local z = ra[7] * bx + ra[8] * by + ra[9] * bz + az
-  return pose(rotation.multiply(ra, rb, ra), x, y, z)
+  return new_pose(rotation.multiply(ra, rb, ra), x, y, z)
 end
 
 local applied = {}
@@ -180,9 +181,9 @@ local applied = {}
 -- @usage
 -- -- the tag's top-left corner (c4) in the camera frame
 -- local c4 = tagpose.transform.apply(pose, { x = -s / 2, y = -s / 2, z = 0 })
-function M.apply(p, point)
+function M.apply(pose, point)
   local r = applied
-  local tx, ty, tz = read_pose(p, 1, "apply", r)
+  local tx, ty, tz = read_pose(pose, 1, "apply", r)
   local x, y, z = read_point(point)
   if not x then
     args.raise(2, "apply", "point {x =, y =, z =} or {x, y, z} of finite numbers expected, got "
