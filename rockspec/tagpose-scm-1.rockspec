@@ -84,6 +84,7 @@ build = {
     ["tagpose.tracker"] = "src/tagpose/tracker/init.lua",
     ["tagpose.tracker.smooth"] = "src/tagpose/tracker/smooth.lua",
     ["tagpose.tracker.tracks"] = "src/tagpose/tracker/tracks.lua",
+    ["tagpose.transform"] = "src/tagpose/transform.lua",
     ["tagpose.uncertainty"] = "src/tagpose/uncertainty/init.lua",
     ["tagpose.uncertainty.matrix"] = "src/tagpose/uncertainty/matrix.lua",
     ["tagpose.uncertainty.model"] = "src/tagpose/uncertainty/model.lua",

@@ -60,8 +60,9 @@ local SOLVE_OPTIONS = {
 --- The pose of a layout from one frame's detections: one joint least-squares fit over all the
 -- corners of its tags seen, through the lens.
 -- @tparam {table,...} detections array of `{id =, corners =}` (corners in detection order, as
---   for `tagpose.solve`); detections of ids not in the layout, malformed ones and ones whose
---   tag cannot be solved are skipped and listed
+--   for `tagpose.solve`); detections of ids not in the layout and malformed ones are skipped
+--   and listed, and so are tags that cannot be solved alone when no other tag can (otherwise
+--   their corners join the joint fit)
 -- @tparam table camera as for `tagpose.solve`
 -- @tparam table layout `{tags = {[id] = {size =, position =, quaternion =}}}`
 -- @tparam[opt] table options `sigma` (corner noise, px, for `covariance` and `confidence`;

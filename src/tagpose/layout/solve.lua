@@ -2,16 +2,19 @@
 --
 -- 1. Every detection of a tag of the layout is solved alone (the refined single-tag solve): one
 --    or two poses (the planar ambiguity), each implying a body pose `R_b = R·Qᵀ`,
---    `t_b = t - R_b·p` for the tag placed at `(Q, p)` on the body. These are the starts.
+--    `t_b = t - R_b·p` for the tag placed at `(Q, p)` on the body. These are the starts. A tag
+--    that cannot be solved alone (seen nearly edge-on, its noisy corners not a convex
+--    quadrilateral) still joins the joint fit with its corners, when another tag gives starts.
 -- 2. One tag seen: its candidates are the body's minima (the same least-squares problem), so
 --    that a layout seen by one tag has the pose and uncertainty `tagpose.solve` gives the tag.
--- 3. Otherwise the starts are costed over all the corners of all the tags seen, and the joint
---    fit (`tagpose.layout.fit`: least squares over every corner through the lens) runs from the
---    best. Where the view is ambiguous — only tags in one plane — the other branch is fit too,
---    from the minimum mirrored about the line of sight to the tags' centroid (the planar
---    ambiguity of the whole plane, as IPPE has it for a square); when it reaches a distinct
---    minimum, the better-fitting minimum is the pose and the other its `alternative`.
---    Tags on planes at an angle leave no planar ambiguity: one pose.
+-- 3. Otherwise the joint fit (`tagpose.layout.fit`: least squares over every corner through the
+--    lens) runs from the start that fits all the corners best. Where the view is ambiguous —
+--    only tags in one plane — it runs from every start instead (two distant tags on one wall
+--    have several minima, and the best start alone often leads to a worse one), and from the
+--    best minimum mirrored about the line of sight to the tags' centroid (the planar ambiguity
+--    of the whole plane, as IPPE has it for a square); the best minimum is the pose and the
+--    best other one, when it is distinct, its `alternative`. Tags on planes at an angle leave
+--    no planar ambiguity: one pose.
 --
 -- The uncertainty (`tagpose.uncertainty`), σ being `options.sigma`, else the fit's residuals
 -- (`8n - 6` degrees of freedom for n tags, 2 for one) pooled with
@@ -47,6 +50,9 @@ M.COPLANAR_ANGLE = math.rad(10)
 M.COPLANAR_DISTANCE = 0.1
 --- Two minima closer than this angle (radians) are one.
 M.TWIN_ANGLE = 1e-6
+--- Fits from different starts that end closer than this angle (radians) are in one basin (a
+-- fit stops within its tolerance of the minimum, not at it).
+M.SAME_MINIMUM = 1e-3
 --- A minimum of a one-tag view whose tag rotation is within this angle (radians) of one of the
 -- tag's own candidates is on its branch (the uncertainty is then the tag's).
 M.SAME_BRANCH = math.rad(5)
@@ -169,14 +175,16 @@ local function get_start(k, r)
   return start_t[o + 1], start_t[o + 2], start_t[o + 3]
 end
 
--- The usable detections: those of tags of the layout with four finite corners, solved alone;
--- the others go into skipped with their reason. Fills points, pixels and the starts.
+-- The usable detections: those of tags of the layout with four finite corners, each solved
+-- alone for the starts; a tag that cannot be solved alone (seen nearly edge-on, its noisy
+-- corners not a convex quadrilateral) is a passenger: its corners join the joint fit, it gives
+-- no start. The others go into skipped with their reason. Fills points, pixels and the starts.
 local function gather(detections, camera, tags, skipped)
   local used, n, starts = {}, 0, 0
   local first_of = {}
   for i = 1, #detections do
     local d = detections[i]
-    local reason, tag, pose
+    local reason, tag, pose, passenger
     if type(d) ~= "table" then
       reason = "layout: detection is not a table {id =, corners =}"
     else
@@ -193,17 +201,18 @@ local function gather(detections, camera, tags, skipped)
           .. first_of[d.id] .. " is used)"
       else
         pose, reason = solve_tag(camera, tag.size)
+        passenger = not pose
       end
     end
-    if pose then
+    if pose or passenger then
       n = n + 1
       first_of[d.id] = i
-      used[n] = { index = i, id = d.id, tag = tag, pose = pose }
+      used[n] = { index = i, id = d.id, tag = tag, pose = pose, reason = reason }
       local o = 8 * (n - 1)
       for k = 1, 8 do pixels[o + k] = corners[k] end
       local p, q = tag.points, 12 * (n - 1)
       for k = 1, 12 do points[q + k] = p[k] end
-      for k = 1, #pose do
+      for k = 1, pose and #pose or 0 do
         starts = starts + 1
         add_start(starts, pose[k], tag)
       end
@@ -214,6 +223,8 @@ local function gather(detections, camera, tags, skipped)
   end
   return used, n, starts
 end
+
+local function by_index(a, b) return a.index < b.index end
 
 -- The public pose table of a minimum (its covariance set by `uncertain`).
 local function result(r, x, y, z, sse, k, npts)
@@ -288,6 +299,56 @@ local function one_tag(used, skipped, o)
   return finish(body, used, 1, skipped)
 end
 
+local r_k = {} -- one start's fit
+
+-- Keep the fit from (r, tx, ty, tz) in the list of minima found (sorted by their squared
+-- pixel errors), merged with one already there in the same basin (`SAME_MINIMUM`).
+local function keep(found, camera, npts, r, tx, ty, tz, max_it)
+  local cost, k, sse
+  tx, ty, tz, cost, k, sse = fit.fit(camera, points, pixels, npts, r, tx, ty, tz, max_it)
+  if not (cost < huge and finite(r, tx, ty, tz, sse)) then return end
+  local m
+  for i = 1, #found do
+    if rotation.angle(found[i].r, r) < M.SAME_MINIMUM then
+      m = found[i]
+      break
+    end
+  end
+  if not m then
+    m = { r = {}, sse = huge }
+    found[#found + 1] = m
+  end
+  if sse < m.sse then
+    for i = 1, 9 do m.r[i] = r[i] end
+    m.x, m.y, m.z, m.sse, m.k = tx, ty, tz, sse, k
+  end
+  -- by squared error (a list of a few: insertion)
+  for i = #found, 2, -1 do
+    if found[i].sse < found[i - 1].sse then found[i], found[i - 1] = found[i - 1], found[i] end
+  end
+end
+
+-- The minima of the joint fit: from every start (each tag's poses) where the tags are in one
+-- plane — there the best start alone can lead to the wrong one of several minima, as it does
+-- for two distant tags on one wall — else from the start that fits all the corners best.
+local function minima(camera, npts, starts, max_it, plane)
+  local found, first, last = {}, 1, starts
+  if not plane then
+    local best_cost = huge
+    for k = 1, starts do
+      local tx, ty, tz = get_start(k, r_k)
+      local c = fit.cost(camera, points, pixels, 1, npts, r_k, tx, ty, tz)
+      if c < best_cost then first, best_cost = k, c end
+    end
+    last = first
+  end
+  for k = first, last do
+    local tx, ty, tz = get_start(k, r_k)
+    keep(found, camera, npts, r_k, tx, ty, tz, max_it)
+  end
+  return found
+end
+
 --- Solve a layout's pose from one frame's detections.
 -- @tparam table detections array of `{id =, corners =}`
 -- @tparam table camera a checked camera
@@ -298,46 +359,50 @@ end
 function M.solve(detections, camera, tags, o)
   local skipped = {}
   local used, n, starts = gather(detections, camera, tags, skipped)
-  if n == 0 then
+  if starts == 0 then
+    -- no tag solved alone: the passengers are skipped with their reasons
+    for i = 1, n do
+      local u = used[i]
+      skipped[#skipped + 1] = { index = u.index, id = u.id, reason = u.reason }
+    end
+    table.sort(skipped, by_index)
     local why = skipped[1] and skipped[1].reason
     return nil, "layout: no detection gives a pose of a tag of the layout"
       .. (why and " (detection " .. skipped[1].index .. ": " .. why .. ")" or "")
   end
   local npts = 4 * n
   if n == 1 then return one_tag(used, skipped, o) end
-  -- the best start over all the corners
-  local best, best_cost = 1, huge
-  for k = 1, starts do
-    local tx, ty, tz = get_start(k, r_a)
-    local c = fit.cost(camera, points, pixels, 1, npts, r_a, tx, ty, tz)
-    if c < best_cost then best, best_cost = k, c end
-  end
   local max_it = o.max_iterations or M.MAX_ITERATIONS
-  local ax, ay, az = get_start(best, r_a)
-  local cost_a, k_a, sse_a, cost_b, k_b, sse_b
-  ax, ay, az, cost_a, k_a, sse_a = fit.fit(camera, points, pixels, npts, r_a, ax, ay, az, max_it,
-    nil, normal_a)
-  -- the other branch, where the view is ambiguous: the minimum mirrored about the line of
-  -- sight to the tags' plane
-  local other, bx, by, bz = nil, nil, nil, nil
-  if coplanar(used, n) then
-    other = true
-    bx, by, bz = mirror(used, n, r_a, ax, ay, az, r_b)
+  local plane = coplanar(used, n)
+  local found = minima(camera, npts, starts, max_it, plane)
+  if plane and found[1] then
+    -- the other branch of the whole plane: the best minimum mirrored about the line of sight
+    local m = found[1]
+    local bx, by, bz = mirror(used, n, m.r, m.x, m.y, m.z, r_b)
+    keep(found, camera, npts, r_b, bx, by, bz, max_it)
   end
+  if not found[1] then return nil, "layout: the joint fit put a corner behind the camera" end
+  -- the best minimum, and where the view is ambiguous (tags in one plane) the best other one,
+  -- each fit on from where it stopped, with its normal equations
+  local m = found[1]
+  for i = 1, 9 do r_a[i] = m.r[i] end
+  local ax, ay, az, cost_a, k_a, sse_a = fit.fit(camera, points, pixels, npts, r_a, m.x, m.y, m.z,
+    max_it, nil, normal_a)
+  if not (cost_a < huge and finite(r_a, ax, ay, az, sse_a)) then
+    return nil, "layout: the joint fit put a corner behind the camera"
+  end
+  k_a = k_a + m.k
+  local other = plane and found[2] or nil
+  local bx, by, bz, cost_b, k_b, sse_b
   if other then
-    bx, by, bz, cost_b, k_b, sse_b = fit.fit(camera, points, pixels, npts, r_b, bx, by, bz,
-      max_it, nil, normal_b)
+    for i = 1, 9 do r_b[i] = other.r[i] end
+    bx, by, bz, cost_b, k_b, sse_b = fit.fit(camera, points, pixels, npts, r_b, other.x, other.y,
+      other.z, max_it, nil, normal_b)
+    k_b = k_b + other.k
     if not (cost_b < huge and finite(r_b, bx, by, bz, sse_b))
       or rotation.angle(r_a, r_b) < M.TWIN_ANGLE then
       other = nil
     end
-  end
-  if not (cost_a < huge and finite(r_a, ax, ay, az, sse_a)) then
-    if not other then return nil, "layout: the joint fit put a corner behind the camera" end
-    -- only the other branch led to a pose
-    for i = 1, 9 do r_a[i] = r_b[i] end
-    for i = 1, 27 do normal_a[i] = normal_b[i] end
-    ax, ay, az, sse_a, k_a, other = bx, by, bz, sse_b, k_b, nil
   end
   local a = { r = r_a, x = ax, y = ay, z = az, sse = sse_a, k = k_a, normal = normal_a }
   local b = other and { r = r_b, x = bx, y = by, z = bz, sse = sse_b, k = k_b,
