@@ -70,7 +70,7 @@ if args["require"] then
   local pose = assert(tagpose.solve({ { 280, 280 }, { 360, 280 }, { 360, 200 }, { 280, 200 } },
     { fx = 883.98, fy = 883.98, cx = 319.5, cy = 239.5 }, 0.024))
   local n2, heap2 = count()
-  local _ = pose.confidence, pose.covariance
+  local _, _ = pose.confidence, pose.covariance
   local n3, heap3 = count()
   print(("%s | require modules %d heap_kb %.0f | after_solve modules %d heap_kb %.0f"
     .. " | after_reading modules %d heap_kb %.0f"):format(vm, n, heap - base, n2, heap2 - base,
@@ -124,7 +124,7 @@ local function solve_pass(opts, read)
     for i = 1, n do
       local pose = solve(corners[i], camera, tag_size, opts)
       if read and pose then
-        local _ = pose.confidence, pose.covariance[1][1]
+        local _, _ = pose.confidence, pose.covariance[1][1]
       end
     end
   end
