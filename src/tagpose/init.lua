@@ -38,6 +38,7 @@ local ON_DEMAND = {
   layout = "tagpose.layout",
   tracker = "tagpose.tracker",
   calibration = "tagpose.formats.calibration",
+  transform = "tagpose.transform",
 }
 
 setmetatable(M, {
