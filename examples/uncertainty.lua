@@ -1,5 +1,5 @@
 -- How far to trust tagpose's poses: coverage of pose.covariance and calibration of
--- pose.confidence on a data set with ground truth (the format of shared/bench/dev).
+-- pose.confidence on a data set with ground truth (the format of bench/dev).
 --
 --   lua5.4 examples/uncertainty.lua DATASET_DIR [--sigma S | --default-sigma] [--track]
 --     [--kappa K] [--spread S] [--bins] [--textbook]

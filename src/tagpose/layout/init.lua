@@ -4,8 +4,8 @@
 --     layout = {tags = {[id] = {size = s, position = {x =, y =, z =},
 --                               quaternion = {w =, x =, y =, z =}}}}
 --
--- places each tag's frame (DESIGN.md's: origin at the tag's centre, x right, y down, z into the
--- tag) in the body frame: `X_body = R(quaternion)·X_tag + position`. Lengths are in the unit
+-- places each tag's frame (docs/conventions.md: origin at the tag's centre, x right, y down,
+-- z into the tag) in the body frame: `X_body = R(quaternion)·X_tag + position`. Lengths are in the unit
 -- of the sizes, angles in radians, errors in pixels.
 --
 -- * `solve` gives the body's pose from one frame's detections (`tagpose.layout.solve`);
