@@ -5,8 +5,8 @@
 --                               quaternion = {w =, x =, y =, z =}}}}
 --
 -- places each tag's frame (docs/conventions.md: origin at the tag's centre, x right, y down,
--- z into the tag) in the body frame: `X_body = R(quaternion)·X_tag + position`. Lengths are in the unit
--- of the sizes, angles in radians, errors in pixels.
+-- z into the tag) in the body frame: `X_body = R(quaternion)·X_tag + position`. Lengths are
+-- in the unit of the sizes, angles in radians, errors in pixels.
 --
 -- * `solve` gives the body's pose from one frame's detections (`tagpose.layout.solve`);
 -- * `calibrate` gives the layout a recorded log says, from a nominal one
