@@ -14,7 +14,9 @@
 --              `read` the same reading pose.confidence and pose.covariance[1][1] of each;
 --   bytes      allocated per plain solve with the collector stopped, `bytes_into` with
 --              options.into (0 once warm), `bytes_read` reading confidence and covariance;
---   iterations the mean solveQuad iterations and refinement linearisations.
+--   iterations the mean solveQuad iterations, the rows where solveQuad's safeguard found the
+--              root (the report's update did not converge), the mean refinement
+--              linearisations.
 --
 -- With --tracker the rows are tracked frame by frame (one detection a frame; in bench/dev's
 -- `sequences`, frame = sequence·1000 + k, each sequence a tag and k/30 s its time) and it
@@ -175,12 +177,14 @@ for _ = 1, 10 do bytes(reuse) end
 local reused = bytes(reuse)
 
 -- iteration counts
-local sq, rf, failed = 0, 0, 0
+local sq, rf, failed, safeguard = 0, 0, 0, 0
 for i = 1, n do
   local pose = tagpose.solve(corners[i], camera, tag_size, options)
   if pose then
     sq = sq + pose.iterations
     rf = rf + (pose.refine_iterations or 0)
+    -- the report's update did not converge within its steps: the safeguard found the root
+    if pose.iterations >= solvequad.REPORT_STEPS then safeguard = safeguard + 1 end
   else
     failed = failed + 1
   end
@@ -188,6 +192,6 @@ end
 local ok = math.max(n - failed, 1)
 
 print(("%s | %s | method %s | %d rows | solve %.2f | into %.2f | read %.2f | bytes %.0f"
-  .. " | bytes_into %.0f | bytes_read %.0f | solveQuad %.2f (limit %d) | refine %.2f | failed %d")
-  :format(vm, name, args.method or "refined", n, t_plain / n * 1e6, t_into / n * 1e6,
-  t_read / n * 1e6, fresh, reused, read, sq / ok, solvequad.MAX_ITERATIONS, rf / ok, failed))
+  .. " | bytes_into %.0f | bytes_read %.0f | solveQuad %.2f, safeguard on %d rows | refine %.2f"
+  .. " | failed %d"):format(vm, name, args.method or "refined", n, t_plain / n * 1e6,
+  t_into / n * 1e6, t_read / n * 1e6, fresh, reused, read, sq / ok, safeguard, rf / ok, failed))
