@@ -5,8 +5,10 @@
 -- A candidate is a record `{r =, tx =, ty =, tz =, sse =, normal =}` (`tagpose.core.pipeline`'s):
 -- `r` the flat row-major rotation tag → camera, `t` the tag centre in the camera frame (tag-size
 -- units), `sse` the sum of squared pixel residuals of the four corners, `normal` its normal
--- equations (H in the first 21 numbers, `tagpose.core.lsq`'s layout; pixels, no σ), and optionally
--- `qw, qx, qy, qz`, the rotation's unit quaternion. `sigma2` is σ² in px².
+-- equations (H in the first 21 numbers, `tagpose.core.lsq`'s layout; pixels, no σ), and
+-- optionally `qw, qx, qy, qz`, the rotation's unit quaternion. `assess` writes its uncertainty
+-- into the same record: `confidence`, `k` (its chord factor) and `chord` (to the other minimum).
+-- `sigma2` is σ² in px².
 --
 -- Covariances are nested 6×6 tables `c[i][j]`, in the order (x, y, z, rx, ry, rz): position in
 -- tag-size units and a small rotation vector `r` in the camera frame, `R_true = exp([r]×) R`
@@ -20,8 +22,8 @@
 -- `SPREAD`.
 --
 -- The branch probability (`assess`) is cheap: the factors of each H and one quadratic form
--- each. A covariance costs a full inverse and its table: `tagpose.solve` makes it when it is
--- first read (`resolve`).
+-- each. A covariance costs a full inverse and its table. This module is loaded on demand: a
+-- pose's `confidence` and `covariance` are made when first read (`tagpose.core.result`).
 -- @module tagpose.uncertainty
 
 local compat = require("tagpose.core.compat")
