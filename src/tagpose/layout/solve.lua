@@ -309,7 +309,12 @@ function M.solve(detections, camera, tags, o)
   local best, best_cost = 1, huge
   for k = 1, starts do
     local tx, ty, tz = get_start(k, r_a)
-    local c = fit.cost(camera, points, pixels, 1, npts, r_a, tx, ty, tz)
+    local c = 0
+    for first = 1, npts, 16 do
+      c = c + fit.cost(camera, points, pixels, first, first + 15 < npts and first + 15 or npts,
+        r_a, tx, ty, tz)
+      if not (c < best_cost) then break end
+    end
     if c < best_cost then best, best_cost = k, c end
   end
   local max_it = o.max_iterations or M.MAX_ITERATIONS
