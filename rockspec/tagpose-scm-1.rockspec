@@ -54,6 +54,7 @@ build = {
     ["tagpose.formats.layout"] = "src/tagpose/formats/layout.lua",
     ["tagpose.formats.luadata"] = "src/tagpose/formats/luadata/init.lua",
     ["tagpose.formats.luadata.lexer"] = "src/tagpose/formats/luadata/lexer.lua",
+    ["tagpose.formats.output"] = "src/tagpose/formats/output.lua",
     ["tagpose.formats.yaml.block"] = "src/tagpose/formats/yaml/block.lua",
     ["tagpose.formats.yaml.flow"] = "src/tagpose/formats/yaml/flow.lua",
     ["tagpose.formats.yaml"] = "src/tagpose/formats/yaml/init.lua",
