@@ -344,6 +344,25 @@ describe("bin/tagpose-replay on the inputs users have", function()
     assert.is_true(peaks[2] < peaks[1] + 2048, ("peak heap %d KiB for 500 rows, %d KiB for"
       .. " 2000"):format(peaks[1], peaks[2]))
   end)
+
+  it("keeps its memory bounded however many distinct tag ids a log holds", function()
+    local peaks = {}
+    for _, rows in ipairs({ 1000, 5000 }) do
+      local dir = tmp("ids" .. rows)
+      assert.equal(0, select(2, run.run("mkdir " .. run.quote(dir))))
+      assert.equal(0, select(2, run.script("bench/bounds.lua", "ids", dir, rows, 10)))
+      local out, status = run.run(run.quote(run.lua()) .. " spec/support/peak_heap.lua "
+        .. run.quote(dir .. "/corners.csv") .. " --track --svg " .. run.quote(dir .. "/p.svg")
+        .. " --compare " .. run.quote(dir .. "/truth.csv") .. " 2>&1 >/dev/null")
+      run.run("rm -r " .. run.quote(dir))
+      assert.equal(0, status, out)
+      peaks[#peaks + 1] = tonumber(out:match("peak heap (%d+) KiB"))
+    end
+    -- each id's track, its pose and its compared track kept cost about 4.4 KiB an id (17 MB
+    -- more here); the tracks of ended ids are swept out, the live ones kept to MAX_LIVE
+    assert.is_true(peaks[2] < peaks[1] + 8192, ("peak heap %d KiB for 1000 ids, %d KiB for"
+      .. " 5000"):format(peaks[1], peaks[2]))
+  end)
 end)
 
 describe("examples/data", function()

@@ -117,6 +117,14 @@ function M.rows(say, run)
       .. " a frame; first at line %d): kept apart as tracks by image position", repeated.rows,
       nids == 1 and "" or "s", concat(names, ", "), repeated.max, repeated.first)
   end
+  if run.uncounted > 0 then
+    say("uncounted  %d rows of ids past the first %d of their frame: not checked for repeated"
+      .. " keys", run.uncounted, frames.MAX_IDS)
+  end
+  if run.track_count.forgotten > 0 then
+    say("forgotten  %d live tracks dropped past %d (the least recently seen): their tags' next"
+      .. " detections start new tracks", run.track_count.forgotten, frames.MAX_LIVE)
+  end
   if run.untracked > 0 then
     say("untracked  %d detections beyond %d tracks of one id in a frame: solved without a"
       .. " prior, not drawn", run.untracked, frames.MAX_TRACKS)
