@@ -49,7 +49,7 @@ M.MAX_IDS = 10000
 --- Most live tracks kept (over all ids; the least recently seen are dropped past it).
 M.MAX_LIVE = 1000
 
-local MAX_GROUP, MAX_IDS, MAX_LIVE = M.MAX_GROUP, M.MAX_IDS, M.MAX_LIVE
+local MAX_GROUP, MAX_IDS = M.MAX_GROUP, M.MAX_IDS
 
 --- A count of the tracks a `tagpose.tools.plot.tracker` may hold, for `bound_tracks`.
 -- @treturn table
@@ -77,8 +77,9 @@ end
 function M.bound_tracks(tracker, count, frame, before, id)
   local list = tracker.tracks[id]
   local now = list and #list or 0
+  local limit = M.MAX_LIVE
   if now > before then count.added = count.added + now - before end
-  if count.added <= MAX_LIVE then return end
+  if count.added <= limit then return end
   local ids, total = {}, 0
   for key, l in pairs(tracker.tracks) do
     local last = -math.huge
@@ -92,10 +93,10 @@ function M.bound_tracks(tracker, count, frame, before, id)
       total = total + #l
     end
   end
-  if total > MAX_LIVE then
+  if total > limit then
     table.sort(ids, by_age)
     for _, e in ipairs(ids) do
-      if total <= MAX_LIVE then break end
+      if total <= limit then break end
       tracker.tracks[e.id] = nil
       total = total - e.n
       count.forgotten = count.forgotten + e.n
