@@ -132,19 +132,33 @@ local function towards(s)
   return text
 end
 
-local function frames_of(rows)
-  local frames, index = {}, {}
-  for _, r in ipairs(rows) do
-    local k = index[r.frame]
-    if not k then
-      k = #frames + 1
-      index[r.frame] = k
-      frames[k] = {}
+-- The corner log read into frames of detections `{id =, corners =}` (rows of one frame
+-- number, in the order the numbers first come), keeping nothing else of a row; the number of
+-- rows, and the malformed rows (the first 10 kept, with their count).
+local function read_frames(path)
+  local reader, err = log.corner_reader(path)
+  if not reader then fail(err:find(path, 1, true) and err or path .. ": " .. err) end
+  local frames, index, nrows, problems = {}, {}, 0, { n = 0 }
+  while true do
+    local det, line, reason = reader:read()
+    if det == nil then break end
+    if det then
+      nrows = nrows + 1
+      local k = index[det.frame]
+      if not k then
+        k = #frames + 1
+        index[det.frame] = k
+        frames[k] = {}
+      end
+      local f = frames[k]
+      f[#f + 1] = { id = det.tag, corners = det.corners }
+    else
+      problems.n = problems.n + 1
+      if #problems < 10 then problems[#problems + 1] = { line = line, reason = reason } end
     end
-    local f = frames[k]
-    f[#f + 1] = { id = r.tag, corners = r.corners }
   end
-  return frames
+  reader:close()
+  return frames, nrows, problems
 end
 
 -- The per-tag lines of a report.
@@ -212,19 +226,15 @@ local function run(argv, open)
     if not nominal then fail(lerr) end
   end
   -- the log
-  local rows, problems = log.read_corners(opt.log)
-  if not rows then
-    fail(problems:find(opt.log, 1, true) and problems or opt.log .. ": " .. problems)
-  end
-  local frames = frames_of(rows)
+  local frames, nrows, problems = read_frames(opt.log)
   local ok, layout, report = pcall(tagpose.layout.calibrate, frames, camera, nominal, options)
   if not ok then fail(tostring(layout)) end
   if not layout then fail(report) end
   local unit = opt.unit or "m"
   local scale, shown = MM[unit] or 1, MM[unit] and "mm" or unit
-  say("calibrate %s: %d rows in %d frames%s", opt.log, #rows, #frames,
-    #problems > 0 and (", " .. #problems .. " malformed rows skipped") or "")
-  for k = 1, math.min(#problems, 10) do
+  say("calibrate %s: %d rows in %d frames%s", opt.log, nrows, #frames,
+    problems.n > 0 and (", " .. problems.n .. " malformed rows skipped") or "")
+  for k = 1, #problems do
     say("  line %d: %s", problems[k].line, problems[k].reason)
   end
   local f = report.frames
