@@ -113,8 +113,8 @@ describe("tagpose-replay and tagpose-calibrate", function()
   it("end with status 1 and say so when standard output cannot be written", function()
     if not io.open("/dev/full", "w") then return end -- Linux, the BSDs
     local cases = { { REPLAY, "log.csv" }, { REPLAY, "log.csv --out -" },
-      { REPLAY, "log.csv --out p.csv --svg p.svg" },
-      { CALIBRATE, "cube/corners.csv --layout cube/nominal.csv" } }
+      { REPLAY, "log.csv --out p.csv --svg p.svg" }, { REPLAY, "--help" },
+      { CALIBRATE, "cube/corners.csv --layout cube/nominal.csv" }, { CALIBRATE, "--help" } }
     for _, c in ipairs(cases) do
       local parts = { "cd", run.quote(dir), "&&", run.quote(run.lua()),
         run.quote(os.getenv("PWD") .. "/" .. c[1]) }

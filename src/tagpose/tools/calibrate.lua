@@ -268,18 +268,17 @@ function M.main(argv)
   local open = {}
   local ok, status = pcall(run, argv, open)
   for i = #open, 1, -1 do open[i]:abort() end
-  if ok then
-    local flushed, err = io.stdout:flush()
-    if flushed then return status end
-    status = setmetatable({ status = 1, text = "calibrate: standard output: " .. tostring(err)
-      .. "\n" }, EXIT)
-  end
-  if getmetatable(status) == EXIT then
-    local stream = status.status == 0 and io.stdout or io.stderr
-    stream:write(status.text)
+  if ok then status = setmetatable({ status = status, text = "" }, EXIT) end
+  if getmetatable(status) ~= EXIT then error(status, 0) end
+  if status.status ~= 0 then
+    io.stderr:write(status.text)
     return status.status
   end
-  error(status, 0)
+  -- what was written to standard output (the summary, --help) reached it, or status 1
+  local flushed, err = io.stdout:flush()
+  if flushed then return 0 end
+  io.stderr:write("calibrate: standard output: " .. tostring(err) .. "\n")
+  return 1
 end
 
 M.towards = towards

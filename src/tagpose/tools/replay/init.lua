@@ -182,17 +182,17 @@ function M.main(argv)
   local open = {}
   local ok, status = pcall(run, argv, open)
   for i = #open, 1, -1 do open[i]:abort() end
-  if ok then
-    local flushed, err = io.stdout:flush()
-    if flushed then return status end
-    status = setmetatable({ status = 1, text = "replay: standard output: " .. tostring(err)
-      .. "\n" }, command.EXIT)
-  end
-  if getmetatable(status) == command.EXIT then
+  if ok then status = setmetatable({ status = status, text = "" }, command.EXIT) end
+  if getmetatable(status) ~= command.EXIT then error(status, 0) end
+  if status.status ~= 0 then
     io.stderr:write(status.text)
     return status.status
   end
-  error(status, 0)
+  -- what was written to standard output (the summary, --help) reached it, or status 1
+  local flushed, err = io.stdout:flush()
+  if flushed then return 0 end
+  io.stderr:write("replay: standard output: " .. tostring(err) .. "\n")
+  return 1
 end
 
 return M
