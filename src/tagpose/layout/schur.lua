@@ -243,6 +243,45 @@ end
 
 -- Tags eliminated.
 
+-- Subtract Z_oᵀ Z_o2 from block (f(o), f(o2)) of the reduced system over the frames (order
+-- n), for o and each earlier observation o2 of its tag (seen[first .. s - 1], whose frames
+-- come before o's: lower-triangle blocks), and Z_oᵀ Z_o from its diagonal block. Z_o's 36
+-- numbers stay in locals over the pairs (these products are most of a step).
+local function subtract_row(Z, bo, seen, first, s, of, base, n)
+  local z11, z12, z13, z14, z15, z16 =
+    Z[bo + 1], Z[bo + 2], Z[bo + 3], Z[bo + 4], Z[bo + 5], Z[bo + 6]
+  local z21, z22, z23, z24, z25, z26 =
+    Z[bo + 7], Z[bo + 8], Z[bo + 9], Z[bo + 10], Z[bo + 11], Z[bo + 12]
+  local z31, z32, z33, z34, z35, z36 =
+    Z[bo + 13], Z[bo + 14], Z[bo + 15], Z[bo + 16], Z[bo + 17], Z[bo + 18]
+  local z41, z42, z43, z44, z45, z46 =
+    Z[bo + 19], Z[bo + 20], Z[bo + 21], Z[bo + 22], Z[bo + 23], Z[bo + 24]
+  local z51, z52, z53, z54, z55, z56 =
+    Z[bo + 25], Z[bo + 26], Z[bo + 27], Z[bo + 28], Z[bo + 29], Z[bo + 30]
+  local z61, z62, z63, z64, z65, z66 =
+    Z[bo + 31], Z[bo + 32], Z[bo + 33], Z[bo + 34], Z[bo + 35], Z[bo + 36]
+  for s2 = first, s do
+    local o2 = seen[s2]
+    local b2, base2 = 36 * (o2 - 1), 6 * (of[o2] - 1)
+    for c = 1, 6 do
+      local a1, a2, a3 = Z[b2 + c], Z[b2 + 6 + c], Z[b2 + 12 + c]
+      local a4, a5, a6 = Z[b2 + 18 + c], Z[b2 + 24 + c], Z[b2 + 30 + c]
+      local x = base * n + base2 + c
+      SR[x] = SR[x] - (z11 * a1 + z21 * a2 + z31 * a3 + z41 * a4 + z51 * a5 + z61 * a6)
+      SR[x + n] = SR[x + n] - (z12 * a1 + z22 * a2 + z32 * a3 + z42 * a4 + z52 * a5 + z62 * a6)
+      SR[x + 2 * n] = SR[x + 2 * n] - (z13 * a1 + z23 * a2 + z33 * a3
+        + z43 * a4 + z53 * a5 + z63 * a6)
+      SR[x + 3 * n] = SR[x + 3 * n] - (z14 * a1 + z24 * a2 + z34 * a3
+        + z44 * a4 + z54 * a5 + z64 * a6)
+      SR[x + 4 * n] = SR[x + 4 * n] - (z15 * a1 + z25 * a2 + z35 * a3
+        + z45 * a4 + z55 * a5 + z65 * a6)
+      SR[x + 5 * n] = SR[x + 5 * n] - (z16 * a1 + z26 * a2 + z36 * a3
+        + z46 * a4 + z56 * a5 + z66 * a6)
+    end
+  end
+end
+
+
 -- Each tag's observations (P.ot never changes): P.seen_first[i] .. P.seen_first[i + 1] - 1
 -- index P.seen, in frame order.
 local function observations_of_tags(P)
@@ -280,10 +319,7 @@ local function eliminate_tag(P, i, f, n)
     for c = 1, 6 do forward6(L, lo, Z, bo + c - 6, 6) end
     local base = 6 * (of[o] - 1)
     add_projected(Z, bo, zf, go, base)
-    for s2 = first, s do
-      local o2 = seen[s2]
-      subtract_pair(Z, bo, 36 * (o2 - 1), base, 6 * (of[o2] - 1), n)
-    end
+    subtract_row(Z, bo, seen, first, s, of, base, n)
   end
   return true
 end
