@@ -49,6 +49,11 @@ local function fail(msg)
   error(setmetatable({ status = 1, text = "calibrate: " .. msg .. "\n" }, EXIT), 0)
 end
 
+-- status 2 without the usage: an output that is one of the inputs
+local function refuse(msg)
+  error(setmetatable({ status = 2, text = "calibrate: " .. msg .. "\n" }, EXIT), 0)
+end
+
 local M = {}
 
 local MM = { m = 1000, cm = 10, mm = 1 }
@@ -197,7 +202,7 @@ local function open_output(opt, camera_path, open)
     { name = "the camera file", path = camera_path },
     { name = "the nominal layout", path = opt.layout } },
     { { name = "the calibrated layout (--out)", path = opt.out } })
-  if clash then usage(clash) end
+  if clash then refuse(clash) end
   local _, why = io_layout.encode(opt.out, { ids = {} })
   if why then usage("--out: " .. why:gsub("^layout: ", "")) end
   local out, err = output.open(opt.out)

@@ -78,7 +78,7 @@ local function refuse_clashes(opt, camera_path)
   end
   if opt.svg then outputs[#outputs + 1] = { name = "the plot (--svg)", path = opt.svg } end
   local clash = files.clash(inputs, outputs)
-  if clash then usage(clash) end
+  if clash then command.refuse(clash) end
 end
 
 -- the camera file, what it says, the tag sizes and the length unit
