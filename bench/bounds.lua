@@ -167,10 +167,13 @@ end
 -- run a command under GNU time: its peak resident set (MB), user time (s), exit status and
 -- the last line it printed
 local function measure(command)
-  local text = sh("/usr/bin/time -f 'TIME %M %U %x' " .. command)
-  local kb, user, status = text:match("TIME (%d+) ([%d.]+) (%d+)")
-  local last = text:gsub("TIME[^\n]*\n?$", ""):match("([^\n]*)\n?$")
-  return tonumber(kb) / 1024, tonumber(user), tonumber(status), last
+  local record = os.tmpname()
+  local text = sh("/usr/bin/time -o " .. record .. " -f 'TIME %M %U %x' " .. command)
+  local f = assert(io.open(record))
+  local kb, user, status = f:read("*a"):match("TIME (%d+) ([%d.]+) (%d+)")
+  f:close()
+  os.remove(record)
+  return tonumber(kb) / 1024, tonumber(user), tonumber(status), text:match("([^\n]*)\n?$")
 end
 
 local function all(dir)
@@ -179,7 +182,7 @@ local function all(dir)
   local machine = sh("grep -m1 'model name' /proc/cpuinfo"):gsub(".*: ", ""):gsub("\n", "")
   print(("%s on %s (%s cores)"):format(version, machine, sh("nproc"):gsub("\n", "")))
   sh("mkdir -p " .. dir .. "/ids " .. dir .. "/quote")
-  print(sh(lua .. " bench/bounds.lua ids " .. dir .. "/ids 100000 10"):gsub("\n$", ""))
+  print((sh(lua .. " bench/bounds.lua ids " .. dir .. "/ids 100000 10"):gsub("\n$", "")))
   local corners = dir .. "/ids/corners.csv"
   for _, options in ipairs({ "", "--track", "--svg " .. dir .. "/ids/plot.svg",
     "--compare " .. dir .. "/ids/truth.csv",
@@ -190,12 +193,20 @@ local function all(dir)
     print(("replay, 100000 distinct ids %s: peak RSS %.1f MB, user %.1f s, status %d"):format(
       options == "" and "(no options)" or options:gsub(dir .. "/ids/", ""), mb, user, status))
   end
-  print(sh(lua .. " bench/bounds.lua quote " .. dir .. "/quote 48800"):gsub("\n$", ""))
+  sh("mkdir -p " .. dir .. "/frame")
+  print((sh(lua .. " bench/bounds.lua ids " .. dir .. "/frame 100000 100000"):gsub("\n$", "")))
+  local mb, user, status = measure(lua .. " bin/tagpose-replay " .. dir .. "/frame/corners.csv"
+    .. " --track --svg " .. dir .. "/frame/plot.svg --out " .. dir .. "/frame/poses.csv"
+    .. " >/dev/null")
+  print(("replay, 100000 distinct ids in one frame --track --svg --out: peak RSS %.1f MB, user"
+    .. " %.1f s, status %d"):format(mb, user, status))
+  print((sh(lua .. " bench/bounds.lua quote " .. dir .. "/quote 48800"):gsub("\n$", "")))
   local text = sh(lua .. " bin/tagpose-replay " .. dir .. "/quote/corners.csv")
   print(("replay of the stray quote's log: %s; %s"):format(text:match("rows%s+(%d+)") .. " rows",
     text:match("malformed[^\n]*\n[^\n]*"):gsub("\n%s*", ": ")))
-  print(sh(lua .. " bench/bounds.lua layout " .. dir .. "/big.csv 60"):gsub("\n$", ""))
-  local mb, user, status, last = measure(lua .. " -e 'package.path=\"./src/?.lua;"
+  print((sh(lua .. " bench/bounds.lua layout " .. dir .. "/big.csv 60"):gsub("\n$", "")))
+  local last
+  mb, user, status, last = measure(lua .. " -e 'package.path=\"./src/?.lua;"
     .. "./src/?/init.lua;\" .. package.path; local t = os.clock(); local _, e ="
     .. " require(\"tagpose\").layout.read(\"" .. dir .. "/big.csv\");"
     .. " print(e, (\"%.3f s\"):format(os.clock() - t))'")
