@@ -106,9 +106,9 @@ end
 
 --- The first output that is one of the inputs, or another output, and why: `nil` when there
 -- is none.
--- @tparam {{name =, path =},...} inputs what the command reads (`name` says what it is, as
---   `"the corner log"`); entries without a path are left out
--- @tparam {{name =, path =},...} outputs what it writes
+-- @tparam table inputs what the command reads: an array of `{name =, path =}` (`name` says
+--   what it is, as `"the corner log"`); entries without a path are left out
+-- @tparam table outputs what it writes, in the same form
 -- @tparam[opt] table options `{stat = false}` to check as where the system cannot say
 -- @treturn string|nil the reason, naming both
 function M.clash(inputs, outputs, options)
