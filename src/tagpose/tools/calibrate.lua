@@ -18,8 +18,11 @@
 --              for m, cm and mm, else in the unit
 -- --reference, --gauge, --robust, --max-iterations: tagpose.layout.calibrate's options
 --
--- Exit status: 0 calibrated, 1 a file could not be read or written or the log cannot
--- calibrate the layout, 2 a usage error.
+-- --out may not be an input (the log, the camera file, the nominal layout) under any name
+-- (`tagpose.tools.files`); it is checked and opened before the log is read, and written whole
+-- (`tagpose.formats.output`). Exit status: 0 calibrated, 1 a file could not be read or written
+-- (standard output included) or the log cannot calibrate the layout, 2 a usage error or an
+-- --out that is an input.
 -- @module tagpose.tools.calibrate
 
 local tagpose = require("tagpose")
@@ -267,8 +270,9 @@ end
 
 --- Run the command on its arguments (`arg` of the script).
 -- @tparam {string,...} argv the command-line arguments
--- @treturn int the exit status: 0 calibrated, 1 a file could not be read or written or the log
---   cannot calibrate the layout, 2 a usage error
+-- @treturn int the exit status: 0 calibrated, 1 a file could not be read or written (standard
+--   output included) or the log cannot calibrate the layout, 2 a usage error (an --out that is
+--   one of the inputs included)
 function M.main(argv)
   local open = {}
   local ok, status = pcall(run, argv, open)

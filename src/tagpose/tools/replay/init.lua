@@ -30,9 +30,13 @@
 -- (frame, tag) key (lab tags are often all id 0) are kept apart as tracks, by image position
 -- (each detection joins the track of its id whose last centre is nearest, within twice that
 -- detection's diagonal plus 10 px); a track's pose is the prior of its own next detection only.
--- A malformed row is reported with its line number and skipped. Exit status: 0 when the log
--- was replayed (whatever its rows gave), 1 when a file cannot be read or written, 2 on a usage
--- error.
+-- A malformed row is reported with its line number and skipped.
+--
+-- The outputs (--out, --svg) may not be inputs (the log, the camera file, a compared log) or
+-- each other, under any name (`tagpose.tools.files`: the file system's device and inode); they
+-- are opened before anything is read and written whole (`tagpose.formats.output`). Exit
+-- status: 0 when the log was replayed (whatever its rows gave), 1 when a file cannot be read
+-- or written (standard output included), 2 on a usage error or an output that is an input.
 --
 -- Its parts: `tagpose.tools.replay.command` (the command line and its exits),
 -- `tagpose.tools.replay.frames` (rows solved, tracked, written and counted a frame at a time),
