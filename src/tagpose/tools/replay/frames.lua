@@ -20,8 +20,9 @@
 --     }
 --
 -- Memory is bounded whatever the log (its length, its ids): the rows of one part of a frame,
--- at most `MAX_LIVE` live tracks (a tracker keeps an id's tracks until the id comes back, so
--- the ids whose tracks have ended are swept out as new ones come: `bound_tracks`), at most
+-- at most twice `MAX_LIVE` tracks (a tracker keeps an id's tracks until the id comes back, so
+-- the ids whose tracks have ended are swept out as new ones come, and the live ones down to
+-- `MAX_LIVE`: `bound_tracks`), at most
 -- `MAX_IDS` ids in the summary and in a frame's count of repeated keys, and the figure's
 -- bounded series. A track keeps its last pose only when tracking (`--track`), for the prior.
 -- @module tagpose.tools.replay.frames
