@@ -58,6 +58,7 @@ build = {
     ["tagpose.formats.layout"] = "src/tagpose/formats/layout.lua",
     ["tagpose.formats.luadata"] = "src/tagpose/formats/luadata/init.lua",
     ["tagpose.formats.luadata.lexer"] = "src/tagpose/formats/luadata/lexer.lua",
+    ["tagpose.formats.output"] = "src/tagpose/formats/output.lua",
     ["tagpose.formats.wpilib"] = "src/tagpose/formats/wpilib.lua",
     ["tagpose.formats.xml"] = "src/tagpose/formats/xml.lua",
     ["tagpose.formats.yaml.block"] = "src/tagpose/formats/yaml/block.lua",

@@ -8,13 +8,11 @@
 -- 2. One tag seen: its candidates are the body's minima (the same least-squares problem), so
 --    that a layout seen by one tag has the pose and uncertainty `tagpose.solve` gives the tag.
 -- 3. Otherwise the joint fit (`tagpose.layout.fit`: least squares over every corner through the
---    lens) runs from the start that fits all the corners best. Where the view is ambiguous —
---    only tags in one plane — it runs from every start instead (two distant tags on one wall
---    have several minima, and the best start alone often leads to a worse one), and from the
---    best minimum mirrored about the line of sight to the tags' centroid (the planar ambiguity
---    of the whole plane, as IPPE has it for a square); the best minimum is the pose and the
---    best other one, when it is distinct, its `alternative`. Tags on planes at an angle leave
---    no planar ambiguity: one pose.
+--    lens) runs from the start that fits all the corners best. With only tags in one plane it
+--    runs from every start (the `PLANE_STARTS` that fit best: two distant tags on one wall have
+--    several minima, and the best start alone often leads to a worse one) and from the best
+--    minimum mirrored about the line of sight to the tags' centroid (the planar ambiguity of
+--    the plane); the best minimum is the pose, the best other distinct one its `alternative`.
 --
 -- The uncertainty (`tagpose.uncertainty`), σ being `options.sigma`, else the fit's residuals
 -- (`8n - 6` degrees of freedom for n tags, 2 for one) pooled with
@@ -328,23 +326,77 @@ local function keep(found, camera, npts, r, tx, ty, tz, max_it)
   end
 end
 
--- The minima of the joint fit: from every start (each tag's poses) where the tags are in one
--- plane — there the best start alone can lead to the wrong one of several minima, as it does
--- for two distant tags on one wall — else from the start that fits all the corners best.
-local function minima(camera, npts, starts, max_it, plane)
-  local found, first, last = {}, 1, starts
-  if not plane then
-    local best_cost = huge
-    for k = 1, starts do
-      local tx, ty, tz = get_start(k, r_k)
-      local c = fit.cost(camera, points, pixels, 1, npts, r_k, tx, ty, tz)
-      if c < best_cost then first, best_cost = k, c end
-    end
-    last = first
-  end
-  for k = first, last do
+--- Most starts fit where the tags are in one plane (those of least cost): up to eight tags, all.
+M.PLANE_STARTS = 16
+--- Starts closer than this (radians, and as a part of the distance) to one fitted are not.
+M.SAME_START = 0.02
+
+local chosen, chosen_cost = {}, {} -- the starts of least cost, by cost
+local tried = {} -- the starts fitted: {r =, x =, y =, z =}
+
+-- The `count` starts of least cost over all the corners, in the order of their index: a
+-- start's cost is summed a few tags at a time and dropped once it passes the count-th best so
+-- far (so costing the starts is about linear in the corners, not in corners times starts).
+local function cheapest(camera, npts, starts, count)
+  local m = 0
+  for k = 1, starts do
     local tx, ty, tz = get_start(k, r_k)
-    keep(found, camera, npts, r_k, tx, ty, tz, max_it)
+    local bound = m == count and chosen_cost[m] or huge
+    local c = 0
+    for first = 1, npts, 16 do
+      c = c + fit.cost(camera, points, pixels, first, first + 15 < npts and first + 15 or npts,
+        r_k, tx, ty, tz)
+      if not (c < bound) then break end
+    end
+    if c < bound then
+      if m < count then m = m + 1 end
+      local j = m - 1
+      while j >= 1 and chosen_cost[j] > c do
+        chosen[j + 1], chosen_cost[j + 1] = chosen[j], chosen_cost[j]
+        j = j - 1
+      end
+      chosen[j + 1], chosen_cost[j + 1] = k, c
+    end
+  end
+  for i = m + 1, #chosen do chosen[i], chosen_cost[i] = nil, nil end
+  table.sort(chosen)
+  return m
+end
+
+-- The minima of the joint fit: from every start (each tag's poses; the `PLANE_STARTS` of least
+-- cost) where the tags are in one plane — there the best start alone can lead to the wrong one
+-- of several minima, as it does for two distant tags on one wall — else from the start that
+-- fits all the corners best.
+local function minima(camera, npts, starts, max_it, plane)
+  local found = {}
+  local m = starts
+  if not plane or starts > M.PLANE_STARTS then
+    m = cheapest(camera, npts, starts, plane and M.PLANE_STARTS or 1)
+  else
+    for k = 1, starts do chosen[k] = k end
+  end
+  local fitted = 0
+  for i = 1, m do
+    local tx, ty, tz = get_start(chosen[i], r_k)
+    -- a start next to one fitted already (the tags of one board agree) leads where it led
+    local near = false
+    for j = 1, fitted do
+      local f = tried[j]
+      local d2 = (f.x - tx) ^ 2 + (f.y - ty) ^ 2 + (f.z - tz) ^ 2
+      if d2 < M.SAME_START ^ 2 * (tx * tx + ty * ty + tz * tz)
+        and rotation.angle(f.r, r_k) < M.SAME_START then
+        near = true
+        break
+      end
+    end
+    if not near then
+      fitted = fitted + 1
+      local f = tried[fitted] or { r = {} }
+      tried[fitted] = f
+      for q = 1, 9 do f.r[q] = r_k[q] end
+      f.x, f.y, f.z = tx, ty, tz
+      keep(found, camera, npts, r_k, tx, ty, tz, max_it)
+    end
   end
   return found
 end
