@@ -2,19 +2,22 @@
 -- pose.confidence on a data set with ground truth (the format of shared/bench/dev).
 --
 --   lua5.4 examples/uncertainty.lua DATASET_DIR [--sigma S | --default-sigma] [--track]
---     [--kappa K] [--spread S] [--bins] [--textbook] [--ellipsoid]
+--     [--kappa K] [--spread S] [--default S,DOF] [--bins] [--textbook] [--ellipsoid]
 --
 -- DATASET_DIR may also be a directory of data sets (each subdirectory with corners.csv and
 -- truth.csv, or a layout set's truth_layout.csv, is scored). σ is --sigma when given, else each
 -- set's meta.json noise.sigma_px (a layout set's sigma_px; passed as options.sigma; a set
 -- without one, or with 0, and every set with --default-sigma, is solved without it: the
 -- library's default). With --track each tag's pose of the previous frame (frame - 1) is passed
--- as options.prior. --kappa and --spread override tagpose.uncertainty.KAPPA and SPREAD (for
--- measuring them); --bins prints the calibration bins; --textbook scores the textbook
--- covariance σ² H⁻¹ at each candidate instead of pose.covariance (H from tagpose.refine.normal
--- at the candidate's pose), for comparison; --ellipsoid scores a tag solved without σ with its
--- covariance times tagpose.uncertainty.ellipsoid(2), the factor that blocks and layouts give a
--- covariance whose σ² is one tag's estimate and tagpose.solve does not.
+-- as options.prior. --kappa and --spread override tagpose.uncertainty.KAPPA and SPREAD, and
+-- --default S,DOF its DEFAULT_SIGMA and DEFAULT_DOF (with --default-sigma), for measuring them
+-- (the κ table is made for DEFAULT_DOF = 8: with another it is exact only from 10 dof on,
+-- for blocks and layouts with a fit of several tags in view); --bins prints the calibration
+-- bins; --textbook scores the textbook covariance σ² H⁻¹ at each candidate instead of
+-- pose.covariance (H from tagpose.refine.normal at the candidate's pose), for comparison;
+-- --ellipsoid scores a tag solved without σ with its covariance times
+-- tagpose.uncertainty.ellipsoid(2), the factor that blocks and layouts give a covariance whose
+-- σ² is one tag's estimate and tagpose.solve does not.
 --
 -- Per set it prints:
 --   coverage   rows whose true pose lies inside the 95 % ellipsoid of the candidate on the true
@@ -51,8 +54,8 @@ local atan2 = require("tagpose.core.compat").atan2
 
 local function usage(msg)
   io.stderr:write((msg and msg .. "\n" or "") .. "usage: lua examples/uncertainty.lua "
-    .. "DATASET_DIR [--sigma S | --default-sigma] [--track] [--kappa K] [--spread S] [--bins] "
-    .. "[--textbook] [--ellipsoid]\n")
+    .. "DATASET_DIR [--sigma S | --default-sigma] [--track] [--kappa K] [--spread S] "
+    .. "[--default S,DOF] [--bins] [--textbook] [--ellipsoid]\n")
   os.exit(2)
 end
 
@@ -70,6 +73,12 @@ do
     elseif a == "--spread" then
       i = i + 1
       opts.spread = tonumber(arg[i] or "") or usage("--spread needs a number")
+    elseif a == "--default" then
+      i = i + 1
+      local s, dof = (arg[i] or ""):match("^([^,]+),([^,]+)$")
+      opts.default = { tonumber(s or ""), tonumber(dof or "") }
+      if not (opts.default[1] and opts.default[2]) then usage("--default needs S,DOF") end
+      opts.default_sigma = true
     elseif a == "--default-sigma" then
       opts.default_sigma = true
     elseif a == "--track" then
@@ -93,6 +102,9 @@ do
 end
 if opts.kappa then uncertainty.KAPPA = opts.kappa end
 if opts.spread then uncertainty.SPREAD = opts.spread end
+if opts.default then
+  uncertainty.DEFAULT_SIGMA, uncertainty.DEFAULT_DOF = opts.default[1], opts.default[2]
+end
 
 local function exists(path)
   local f = io.open(path, "r")
