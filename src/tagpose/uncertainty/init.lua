@@ -39,7 +39,9 @@ local factor, variance, inverse, fill = matrix.factor, matrix.variance, matrix.i
 local M = {}
 
 --- σ (px) assumed when none is given: a corner detector on a robot camera (the real AprilTag
--- detector's corner error on clean renders is ~0.12 px; 0.3-0.5 px on a robot).
+-- detector's corner error on clean renders is ~0.12 px; the real BuilderBot logs' residuals
+-- give 0.15-0.28 px, `bench/corner_noise.lua`). Where a frame has too few residuals to tell,
+-- the covariance is right near this σ and too wide below it (docs/uncertainty.md).
 M.DEFAULT_SIGMA = 0.5
 --- Weight of `DEFAULT_SIGMA` in degrees of freedom: σ² rests on `DEFAULT_DOF + 2` degrees of
 -- freedom at least, the default filling in what the residuals' ν lack (`noise`); one tag's
