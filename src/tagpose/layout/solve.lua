@@ -15,8 +15,11 @@
 --    the plane); the best minimum is the pose, the best other distinct one its `alternative`.
 --
 -- The uncertainty (`tagpose.uncertainty`), σ being `options.sigma`, else the fit's residuals
--- (`8n - 6` degrees of freedom for n tags, 2 for one) pooled with
--- `tagpose.uncertainty.DEFAULT_SIGMA` as a tag's is:
+-- (`8n - 6` degrees of freedom for n tags, 2 for one), topped up with
+-- `tagpose.uncertainty.DEFAULT_SIGMA` to the degrees of freedom they lack
+-- (`tagpose.uncertainty.noise`: two tags or more have enough and are judged by their own), the
+-- covariances then taking the factor κ that makes their 95 % ellipsoid hold 95 % with σ²
+-- estimated (`tagpose.uncertainty.ellipsoid`):
 --
 -- - one tag seen: the tag's own — its branch probability and covariance as `tagpose.solve`
 --   gives them, the covariance moved from the tag to the body origin;
@@ -88,12 +91,10 @@ local function solve_tag(camera, size)
   return out
 end
 
--- σ² of the covariances: options.sigma², else the fit's residuals pooled with the default.
+-- σ² of the covariances and confidences, options.sigma² or the fit's residuals topped up with
+-- the default; and κ, the factor on the covariances (1 for a given σ).
 local function noise(sse, n, sigma)
-  if sigma then return sigma * sigma end
-  local d = uncertainty.DEFAULT_SIGMA
-  local dof = n > 1 and 8 * n - 6 or 2
-  return (uncertainty.DEFAULT_DOF * d * d + sse) / (uncertainty.DEFAULT_DOF + dof)
+  return uncertainty.noise(sse, sigma, n > 1 and 8 * n - 6 or 2)
 end
 
 -- Are the used tags all in one plane (normals and centres)?
@@ -236,27 +237,28 @@ local function result(r, x, y, z, sse, k, npts)
   }
 end
 
--- Covariances and confidences of the body (minimum a) and its alternative (minimum b, or nil):
--- see the module's header.
-local function uncertain(n, body, alt, a, b, s2)
+-- Covariances and confidences of the body (minimum a) and its alternative (minimum b, or nil),
+-- σ² s2 and the covariances' factor kappa: see the module's header.
+local function uncertain(n, body, alt, a, b, s2, kappa)
+  local c2 = kappa * s2
   if n == 1 then
     local ta, tb = a.tag, b and b.tag
     uncertainty.assess(ta, tb, s2)
-    body.covariance = uncertainty.move(uncertainty.covariance(ta, s2), a.x - ta.tx,
-      a.y - ta.ty, a.z - ta.tz)
+    body.covariance = uncertainty.move(uncertainty.from_normal(ta.normal, c2, kappa * ta.k,
+      ta.chord), a.x - ta.tx, a.y - ta.ty, a.z - ta.tz)
     body.confidence = ta.confidence
     if b then
-      alt.covariance = uncertainty.move(uncertainty.covariance(tb, s2), b.x - tb.tx,
-        b.y - tb.ty, b.z - tb.tz)
+      alt.covariance = uncertainty.move(uncertainty.from_normal(tb.normal, c2, kappa * tb.k,
+        tb.chord), b.x - tb.tx, b.y - tb.ty, b.z - tb.tz)
       alt.confidence = tb.confidence
     end
     return
   end
   local ld_a, ld_b
-  body.covariance, ld_a = uncertainty.from_normal(a.normal, s2, 0)
+  body.covariance, ld_a = uncertainty.from_normal(a.normal, c2, 0)
   body.confidence = 1
   if b then
-    alt.covariance, ld_b = uncertainty.from_normal(b.normal, s2, 0)
+    alt.covariance, ld_b = uncertainty.from_normal(b.normal, c2, 0)
     body.confidence = uncertainty.probability((b.sse - a.sse) / (2 * s2) + 0.5 * (ld_b - ld_a))
     alt.confidence = 1 - body.confidence
   end
