@@ -40,12 +40,13 @@ local ERR_B, LIN_B = 68, 69
 local READ = 70
 local X_ALT, X_ANALYSED, X_K_A, X_K_B, X_CHORD = 1, 2, 3, 4, 4 -- chord: 5..10
 local X_COV_A, X_COV_B, X_TRACK = 11, 12, 13 -- the tables made before, to fill again
+local X_KAPPA = 14 -- the covariance's factor for an estimated σ (`tagpose.uncertainty.noise`)
 
 -- The record of what was made on read (made at the first read; one table, at its size).
 local function made(mt)
   local x = mt[READ]
   if not x then
-    x = { false, false, 0, 0, 0, 0, 0, 0, 0, 0, false, false, false }
+    x = { false, false, 0, 0, 0, 0, 0, 0, 0, 0, false, false, false, 1 }
     mt[READ] = x
   end
   return x
@@ -98,9 +99,11 @@ local function analyse(mt)
   local x = made(mt)
   if x[X_ANALYSED] then return x end
   local a, b = candidates(mt)
-  local sigma2 = mt[SIGMA2] or lazy.uncertainty.noise(a.sse)
+  local sigma2, kappa = mt[SIGMA2], 1
+  if not sigma2 then sigma2, kappa = lazy.uncertainty.noise(a.sse) end
   lazy.uncertainty.assess(a, b, sigma2)
-  mt[SIGMA2], x[X_K_A], x[X_K_B], x[X_ANALYSED] = sigma2, a.k, b and b.k or 0, true
+  mt[SIGMA2], x[X_K_A], x[X_K_B], x[X_ANALYSED], x[X_KAPPA] = sigma2, a.k, b and b.k or 0,
+    true, kappa
   local d = a.chord
   for i = 1, 6 do x[X_CHORD + i] = b and d[i] or 0 end
   local first = mt[FIRST]
@@ -117,10 +120,13 @@ local function covariance(mt, x, is_alt)
   if analysed ~= mt then candidates(mt) end
   local c, slot, k, sign = cand_a, X_COV_A, x[X_K_A], 1
   if is_alt then c, slot, k, sign = cand_b, X_COV_B, x[X_K_B], -1 end
-  c.k = k
+  -- (σ² estimated from the frame: the covariance and its chord term widened by κ, so that its
+  -- 95 % ellipsoid holds 95 %; the confidence took σ² itself)
+  local kappa = x[X_KAPPA]
+  c.k = kappa * k
   local d = c.chord
   for i = 1, 6 do d[i] = sign * x[X_CHORD + i] end
-  local cov = lazy.uncertainty.covariance(c, mt[SIGMA2], x[slot] or nil)
+  local cov = lazy.uncertainty.covariance(c, kappa * mt[SIGMA2], x[slot] or nil)
   x[slot] = cov
   return cov
 end
