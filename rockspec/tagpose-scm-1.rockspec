@@ -74,6 +74,7 @@ build = {
     ["tagpose.layout.fit"] = "src/tagpose/layout/fit.lua",
     ["tagpose.layout"] = "src/tagpose/layout/init.lua",
     ["tagpose.layout.linsolve"] = "src/tagpose/layout/linsolve.lua",
+    ["tagpose.layout.minima"] = "src/tagpose/layout/minima.lua",
     ["tagpose.layout.model"] = "src/tagpose/layout/model.lua",
     ["tagpose.layout.report"] = "src/tagpose/layout/report.lua",
     ["tagpose.layout.rigid"] = "src/tagpose/layout/rigid.lua",
