@@ -1,4 +1,4 @@
--- Synthetic single-tag data sets drawn like ../shared/bench/dev's (the kinds of its PEERS.md),
+-- Synthetic single-tag data sets drawn like bench/dev's (the kinds of its PEERS.md),
 -- with the held-out sets' differences: fx != fy, an off-centre principal point, other tag sizes
 -- and ranges. For checking figures measured on the dev sets away from those files.
 --

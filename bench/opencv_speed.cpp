@@ -1,12 +1,13 @@
-// The speed bar: OpenCV's C++ cv::solvePnP with SOLVEPNP_IPPE_SQUARE on a data set's corners,
-// timed in-process (no Python), median µs per pose over passes. For the same-run comparison
-// with examples/benchmark.lua (see docs/accuracy.md).
+// The speed bar: OpenCV's C++ cv::solvePnPGeneric with SOLVEPNP_IPPE_SQUARE on a data set's
+// corners — both poses of the planar ambiguity and their reprojection errors, what a tagpose
+// solve returns — timed in-process (no Python), median µs per pose over passes. For the
+// same-run comparison with examples/benchmark.lua (bench/speed.sh; see docs/accuracy.md).
 //
 //   g++ -O2 -o /tmp/opencv_speed bench/opencv_speed.cpp $(pkg-config --cflags --libs opencv4)
 //   /tmp/opencv_speed DATASET_DIR [PASSES]
 //
 // DATASET_DIR holds camera.lua (fx, fy, cx, cy, tag_size, optional distortion k1 k2 p1 p2 k3)
-// and corners.csv (frame,tag,u1,v1,...,u4,v4), as ../shared/bench/dev does.
+// and corners.csv (frame,tag,u1,v1,...,u4,v4), as bench/dev does.
 #include <opencv2/calib3d.hpp>
 #include <algorithm>
 #include <chrono>
@@ -56,22 +57,24 @@ int main(int argc, char **argv) {
     if (f.size() < 10) continue;
     rows.push_back({{f[2], f[3]}, {f[4], f[5]}, {f[6], f[7]}, {f[8], f[9]}});
   }
-  cv::Mat rvec, tvec;
+  std::vector<cv::Mat> rvecs, tvecs;
+  cv::Mat errors;
   std::vector<double> us;
   double sink = 0;
   for (int p = 0; p <= passes; p++) {
     auto t0 = std::chrono::steady_clock::now();
     for (auto &r : rows) {
-      cv::solvePnP(object, r, K, D, rvec, tvec, false, cv::SOLVEPNP_IPPE_SQUARE);
-      sink += tvec.at<double>(2);
+      cv::solvePnPGeneric(object, r, K, D, rvecs, tvecs, false, cv::SOLVEPNP_IPPE_SQUARE,
+                          cv::noArray(), cv::noArray(), errors);
+      sink += tvecs[0].at<double>(2) + static_cast<double>(errors.total());
     }
     auto t1 = std::chrono::steady_clock::now();
     if (p > 0)  // the first pass warms up
       us.push_back(std::chrono::duration<double, std::micro>(t1 - t0).count() / rows.size());
   }
   std::sort(us.begin(), us.end());
-  std::printf("opencv %s IPPE_SQUARE: %.2f us/pose (median of %d passes over %zu rows; min %.2f, "
-              "max %.2f)%s\n",
+  std::printf("opencv %s solvePnPGeneric IPPE_SQUARE (both poses and errors): %.2f us/pose "
+              "(median of %d passes over %zu rows; min %.2f, max %.2f)%s\n",
               CV_VERSION, us[us.size() / 2], passes, rows.size(), us.front(), us.back(),
               sink == 0 ? "" : "");
   return 0;

@@ -3,8 +3,8 @@
 --
 --   luajit bench/uncertainty_table.lua [NR NPHI]     (lua5.4 works too, ~10x slower)
 --
--- Prints the Lua table that src/tagpose/uncertainty.lua holds as TABLE. The model: in the tag's
--- tilt plane (the normal's component across the line of sight, a = (x, y), one candidate at
+-- Prints the Lua table that src/tagpose/uncertainty/model.lua holds as TABLE. The model: in the
+-- tag's tilt plane (the normal's component across the line of sight, a = (x, y), one candidate at
 -- x > 0, the other at x < 0), after scale and roll are taken out, the corners measure the
 -- traceless part of a aᵀ; with the perspective's small odd part as a linear tilt,
 --

@@ -1,18 +1,31 @@
--- Speed and memory of tagpose.solve on a data set, for the Lua it runs on.
+-- Speed and memory of tagpose on a data set, for the Lua it runs on: what a robot pays.
 --
 --   lua5.4 examples/benchmark.lua [DATASET_DIR] [--method refined|seed] [--passes N]
---   valgrind --tool=callgrind lua5.4 examples/benchmark.lua DATASET_DIR --solve-only 1
+--   lua5.4 examples/benchmark.lua SEQUENCES_DIR --tracker [--passes N]
+--   lua5.4 examples/benchmark.lua --require
+--   valgrind --tool=callgrind lua5.4 examples/benchmark.lua DATASET_DIR --solve-only N
 --
 -- DATASET_DIR is a directory in the format of bench/dev (camera.lua, corners.csv); default:
--- the bundled example (examples/data/camera.lua and approach.csv). Prints µs per pose (median
--- over passes, after a warm-up pass; fresh result tables, and with options.into reusing one
--- table), bytes allocated per pose with the collector stopped (the same two ways), and the
--- solveQuad and refinement iteration counts.
+-- the bundled example (examples/data/camera.lua and approach.csv). Prints, as `key value`
+-- pairs on one line after the VM's name (bench/speed.sh reads them):
+--
+--   solve      µs per plain solve (median of the passes after a warm-up pass; a fresh result
+--              table each time), `into` the same with one pose table reused (options.into),
+--              `read` the same reading pose.confidence and pose.covariance[1][1] of each;
+--   bytes      allocated per plain solve with the collector stopped, `bytes_into` with
+--              options.into (0 once warm), `bytes_read` reading confidence and covariance;
+--   iterations the mean solveQuad iterations, the rows where solveQuad's safeguard found the
+--              root (the report's update did not converge), the mean refinement
+--              linearisations.
+--
+-- With --tracker the rows are tracked frame by frame (one detection a frame; in bench/dev's
+-- `sequences`, frame = sequence·1000 + k, each sequence a tag and k/30 s its time) and it
+-- prints µs per `tracker:update` of one detection, µs per plain solve of the same rows, and
+-- their ratio. With --require it prints the modules `require "tagpose"` loads and the heap they
+-- hold (KB, after a full collection), then the same after a plain solve, and after reading
+-- confidence and covariance.
 
 package.path = "./src/?.lua;./src/?/init.lua;" .. package.path
-local tagpose = require("tagpose")
-local log = require("tagpose.tools.log")
-local solvequad = require("tagpose.core.solvequad")
 
 local args = { dir = nil, method = nil, passes = 15 }
 do
@@ -28,6 +41,8 @@ do
     elseif a == "--solve-only" then
       i = i + 1
       args.solve_only = tonumber(arg[i])
+    elseif a == "--tracker" or a == "--require" then
+      args[a:sub(3)] = true
     elseif a:sub(1, 2) == "--" then
       io.stderr:write("unknown option " .. a .. "\n")
       os.exit(2)
@@ -37,6 +52,38 @@ do
     i = i + 1
   end
 end
+
+local vm = rawget(_G, "jit") and rawget(_G, "jit").version or _VERSION
+
+-- --require: what a robot's `require "tagpose"` costs (before anything else is loaded)
+if args["require"] then
+  local function count()
+    local n = 0
+    for name in pairs(package.loaded) do
+      if name:match("^tagpose") then n = n + 1 end
+    end
+    collectgarbage("collect")
+    collectgarbage("collect")
+    return n, collectgarbage("count")
+  end
+  local _, base = count()
+  local tagpose = require("tagpose")
+  local n, heap = count()
+  local pose = assert(tagpose.solve({ { 280, 280 }, { 360, 280 }, { 360, 200 }, { 280, 200 } },
+    { fx = 883.98, fy = 883.98, cx = 319.5, cy = 239.5 }, 0.024))
+  local n2, heap2 = count()
+  local _, _ = pose.confidence, pose.covariance
+  local n3, heap3 = count()
+  print(("%s | require modules %d heap_kb %.0f | after_solve modules %d heap_kb %.0f"
+    .. " | after_reading modules %d heap_kb %.0f"):format(vm, n, heap - base, n2, heap2 - base,
+    n3, heap3 - base))
+  return
+end
+
+local tagpose = require("tagpose")
+local log = require("tagpose.tools.log")
+local solvequad = require("tagpose.core.solvequad")
+
 local dir = args.dir or "examples/data"
 local corners_file = args.dir and dir .. "/corners.csv" or dir .. "/approach.csv"
 local name = args.dir and dir:match("([^/]+)/*$") or "approach"
@@ -59,72 +106,92 @@ if args.solve_only then
   return
 end
 
--- one pass over every row; returns CPU seconds
-local function pass(opts)
-  local t0 = os.clock()
-  for i = 1, n do
-    tagpose.solve(corners[i], camera, tag_size, opts)
+-- the median CPU seconds of `passes` calls of f, after one to warm up (LuaJIT's traces)
+local function median(f)
+  f()
+  local times = {}
+  for p = 1, args.passes do
+    local t0 = os.clock()
+    f(p)
+    times[p] = os.clock() - t0
   end
-  return os.clock() - t0
+  table.sort(times)
+  return times[math.floor((#times + 1) / 2)]
 end
 
--- warm up (LuaJIT traces, caches), then the median of the passes
-pass(options)
-local times = {}
-for p = 1, args.passes do times[p] = pass(options) end
-table.sort(times)
-local median = times[math.floor((#times + 1) / 2)]
--- the same with one pose table reused (options.into): no allocation, so no collector's work
-local into_timed = { method = args.method, into = {} }
-pass(into_timed)
-local times_into = {}
-for p = 1, args.passes do times_into[p] = pass(into_timed) end
-table.sort(times_into)
-local median_into = times_into[math.floor((#times_into + 1) / 2)]
+-- one pass over every row, solving with `opts` (and reading the uncertainty when asked)
+local function solve_pass(opts, read)
+  return function()
+    local solve = tagpose.solve
+    for i = 1, n do
+      local pose = solve(corners[i], camera, tag_size, opts)
+      if read and pose then
+        local _, _ = pose.confidence, pose.covariance[1][1]
+      end
+    end
+  end
+end
+
+if args.tracker then
+  -- one detection a frame; a sequence's frames are a track (ids and times from the frame)
+  local frames = {}
+  for i = 1, n do
+    local f = rows[i].frame
+    frames[i] = { { id = math.floor(f / 1000), corners = corners[i] } }
+  end
+  local tracked = median(function(p)
+    local tr = tagpose.tracker.new(camera, tag_size)
+    for i = 1, n do tr:update(frames[i], (p or 0) * 1e4 + (rows[i].frame % 1000) / 30) end
+  end)
+  local plain = median(solve_pass({}))
+  print(("%s | %s | tracker %d rows | update %.2f | solve %.2f | ratio %.2f"):format(vm, name, n,
+    tracked / n * 1e6, plain / n * 1e6, tracked / plain))
+  return
+end
+
+local t_plain = median(solve_pass(options))
+local into_options = { method = args.method, into = {} }
+local t_into = median(solve_pass(into_options))
+local t_read = median(solve_pass(options, true))
 
 -- bytes per solve with the collector stopped
-local function bytes(opts)
+local function bytes(opts, read)
+  local pass = solve_pass(opts, read)
   collectgarbage("collect")
   -- (Lua 5.1's full collection shrinks the VM's own buffers; the first solve after it grows
   -- them back, once, which is not the solve's allocation)
   tagpose.solve(corners[1], camera, tag_size, opts)
   collectgarbage("stop")
   local before = collectgarbage("count")
-  for i = 1, n do
-    tagpose.solve(corners[i], camera, tag_size, opts)
-  end
+  pass()
   local after = collectgarbage("count")
   collectgarbage("restart")
   return (after - before) * 1024 / n
 end
 local fresh = bytes(options)
-local into_options = { method = args.method, into = {} }
+local read = bytes(options, true)
 -- warm-up: the table and its sub-tables come into being (and LuaJIT's traces for this path
 -- settle: recording a trace allocates)
-for _ = 1, 10 do bytes(into_options) end
-local reused = bytes(into_options)
+local reuse = { method = args.method, into = {} }
+for _ = 1, 10 do bytes(reuse) end
+local reused = bytes(reuse)
 
 -- iteration counts
-local sq, rf, sq_max, rf_max, failed, safeguard = 0, 0, 0, 0, 0, 0
+local sq, rf, failed, safeguard = 0, 0, 0, 0
 for i = 1, n do
   local pose = tagpose.solve(corners[i], camera, tag_size, options)
   if pose then
     sq = sq + pose.iterations
-    if pose.iterations > sq_max then sq_max = pose.iterations end
+    rf = rf + (pose.refine_iterations or 0)
     -- the report's update did not converge within its steps: the safeguard found the root
     if pose.iterations >= solvequad.REPORT_STEPS then safeguard = safeguard + 1 end
-    local k = pose.refine_iterations or 0
-    rf = rf + k
-    if k > rf_max then rf_max = k end
   else
     failed = failed + 1
   end
 end
-local ok = n - failed
+local ok = math.max(n - failed, 1)
 
-local vm = rawget(_G, "jit") and rawget(_G, "jit").version or _VERSION
-print(("%s | %s | method %s | %d rows | %.2f µs/pose | %.0f B/pose | %.0f B/pose with into"
-  .. " (%.2f µs with into) | solveQuad mean %.2f max %d, safeguard on %d rows"
-  .. " | refine mean %.2f max %d | %d failed"):format(
-  vm, name, args.method or "refined", n, median / n * 1e6, fresh, reused, median_into / n * 1e6,
-  sq / ok, sq_max, safeguard, rf / math.max(ok, 1), rf_max, failed))
+print(("%s | %s | method %s | %d rows | solve %.2f | into %.2f | read %.2f | bytes %.0f"
+  .. " | bytes_into %.0f | bytes_read %.0f | solveQuad %.2f, safeguard on %d rows | refine %.2f"
+  .. " | failed %d"):format(vm, name, args.method or "refined", n, t_plain / n * 1e6,
+  t_into / n * 1e6, t_read / n * 1e6, fresh, reused, read, sq / ok, safeguard, rf / ok, failed))

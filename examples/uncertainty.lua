@@ -1,17 +1,23 @@
 -- How far to trust tagpose's poses: coverage of pose.covariance and calibration of
--- pose.confidence on a data set with ground truth (the format of shared/bench/dev).
+-- pose.confidence on a data set with ground truth (the format of bench/dev).
 --
 --   lua5.4 examples/uncertainty.lua DATASET_DIR [--sigma S | --default-sigma] [--track]
---     [--kappa K] [--spread S] [--bins] [--textbook]
+--     [--kappa K] [--spread S] [--default S,DOF] [--bins] [--textbook] [--ellipsoid]
 --
 -- DATASET_DIR may also be a directory of data sets (each subdirectory with corners.csv and
--- truth.csv is scored). σ is --sigma when given, else each set's meta.json noise.sigma_px
--- (passed as options.sigma; a set without one, or with 0, and every set with --default-sigma,
--- is solved without it: the library's default). With --track each tag's pose of the previous
--- frame (frame - 1) is passed as options.prior. --kappa and --spread override
--- tagpose.uncertainty.KAPPA and SPREAD (for measuring them); --bins prints the calibration
+-- truth.csv, or a layout set's truth_layout.csv, is scored). σ is --sigma when given, else each
+-- set's meta.json noise.sigma_px (a layout set's sigma_px; passed as options.sigma; a set
+-- without one, or with 0, and every set with --default-sigma, is solved without it: the
+-- library's default). With --track each tag's pose of the previous frame (frame - 1) is passed
+-- as options.prior. --kappa and --spread override tagpose.uncertainty.KAPPA and SPREAD, and
+-- --default S,DOF its DEFAULT_SIGMA and DEFAULT_DOF (with --default-sigma), for measuring them
+-- (the κ table is made for DEFAULT_DOF = 8: with another it is exact only from 10 dof on,
+-- for blocks and layouts with a fit of several tags in view); --bins prints the calibration
 -- bins; --textbook scores the textbook covariance σ² H⁻¹ at each candidate instead of
--- pose.covariance (H from tagpose.refine.normal at the candidate's pose), for comparison.
+-- pose.covariance (H from tagpose.refine.normal at the candidate's pose), for comparison;
+-- --ellipsoid scores a tag solved without σ with its covariance times
+-- tagpose.uncertainty.ellipsoid(2), the factor that blocks and layouts give a covariance whose
+-- σ² is one tag's estimate and tagpose.solve does not.
 --
 -- Per set it prints:
 --   coverage   rows whose true pose lies inside the 95 % ellipsoid of the candidate on the true
@@ -24,9 +30,16 @@
 --              returned pose is the true-branch candidate;
 --   wrong@.95  among those rows, the share with confidence >= 0.95 whose pose is on the wrong
 --              branch (and the count);
--- and for a blocks set (camera.lua with block_size, truth.csv with faces_visible): the share of
+-- for a blocks set (camera.lua with block_size, truth.csv with faces_visible): the share of
 -- blocks found with two or more faces whose true centre lies inside the 95 % position
--- ellipsoid (3-dof Mahalanobis² < 7.81) of block.covariance.
+-- ellipsoid (3-dof Mahalanobis² < 7.81) of block.covariance, and whose true pose lies inside
+-- its 6-dof ellipsoid (the true rotation taken as its symmetric equivalent nearest the
+-- block's); the same 3-dof share for blocks seen with one face (on their true branch) and
+-- their confidence's ECE and wrong@.95;
+-- and for a layout set (bench/dev/layout_cube's form: truth_layout.csv, test/corners.csv,
+-- test/truth_tags.csv): its test log solved with the true layout (tagpose.layout.solve), the
+-- share of body poses inside their 6-dof 95 % ellipsoid, for views of two tags or more and of
+-- one tag.
 
 package.path = "./src/?.lua;./src/?/init.lua;" .. package.path
 local tagpose = require("tagpose")
@@ -41,8 +54,8 @@ local atan2 = require("tagpose.core.compat").atan2
 
 local function usage(msg)
   io.stderr:write((msg and msg .. "\n" or "") .. "usage: lua examples/uncertainty.lua "
-    .. "DATASET_DIR [--sigma S | --default-sigma] [--track] [--kappa K] [--spread S] [--bins] "
-    .. "[--textbook]\n")
+    .. "DATASET_DIR [--sigma S | --default-sigma] [--track] [--kappa K] [--spread S] "
+    .. "[--default S,DOF] [--bins] [--textbook] [--ellipsoid]\n")
   os.exit(2)
 end
 
@@ -60,6 +73,12 @@ do
     elseif a == "--spread" then
       i = i + 1
       opts.spread = tonumber(arg[i] or "") or usage("--spread needs a number")
+    elseif a == "--default" then
+      i = i + 1
+      local s, dof = (arg[i] or ""):match("^([^,]+),([^,]+)$")
+      opts.default = { tonumber(s or ""), tonumber(dof or "") }
+      if not (opts.default[1] and opts.default[2]) then usage("--default needs S,DOF") end
+      opts.default_sigma = true
     elseif a == "--default-sigma" then
       opts.default_sigma = true
     elseif a == "--track" then
@@ -68,6 +87,8 @@ do
       opts.bins = true
     elseif a == "--textbook" then
       opts.textbook = true
+    elseif a == "--ellipsoid" then
+      opts.ellipsoid = true
     elseif a:sub(1, 2) == "--" then
       usage("unknown option " .. a)
     elseif not opts.dir then
@@ -81,6 +102,9 @@ do
 end
 if opts.kappa then uncertainty.KAPPA = opts.kappa end
 if opts.spread then uncertainty.SPREAD = opts.spread end
+if opts.default then
+  uncertainty.DEFAULT_SIGMA, uncertainty.DEFAULT_DOF = opts.default[1], opts.default[2]
+end
 
 local function exists(path)
   local f = io.open(path, "r")
@@ -94,8 +118,9 @@ local function meta_sigma(dir)
   if not f then return nil end
   local text = f:read("*a")
   f:close()
-  local noise = text:match('"noise"%s*:%s*(%b{})')
-  local s = noise and tonumber(noise:match('"sigma_px"%s*:%s*([-%d.eE+]+)'))
+  -- "noise": {"sigma_px": ...} (the tag and block sets), else a "sigma_px" of its own (layouts)
+  local noise = text:match('"noise"%s*:%s*(%b{})') or text
+  local s = tonumber(noise:match('"sigma_px"%s*:%s*([-%d.eE+]+)') or "")
   if s and s > 0 then return s end
   return nil
 end
@@ -202,6 +227,7 @@ local function score_tags(dir, sigma)
           {})
       end
       local m2 = mahalanobis(cov, be, 6) or math.huge
+      if opts.ellipsoid and not sigma then m2 = m2 / uncertainty.ellipsoid(2) end
       n = n + 1
       m2sum = m2sum + m2
       if m2 < 12.59 then covered = covered + 1 end
@@ -245,7 +271,7 @@ local function score_blocks(dir, sigma)
     end
   end
   local half = 0.5 * info.block_size
-  local n, covered, n1, covered1 = 0, 0, 0, 0
+  local n, covered, covered6, n1, covered1 = 0, 0, 0, 0, 0
   local conf, correct = {}, {}
   for _, id in ipairs(order) do
     local f = frames[id]
@@ -278,6 +304,10 @@ local function score_blocks(dir, sigma)
         if faces >= 2 then
           n = n + 1
           if inside then covered = covered + 1 end
+          -- the whole pose, the truth's rotation taken as its symmetric equivalent nearest
+          local aligned = cube.closest(best.r, rotation.from_nested(b.rotation), {})
+          local m6 = mahalanobis(b.covariance, (error_of(b, aligned, best)), 6)
+          if m6 and m6 < 12.59 then covered6 = covered6 + 1 end
         else
           n1 = n1 + 1
           if inside then covered1 = covered1 + 1 end
@@ -286,9 +316,58 @@ local function score_blocks(dir, sigma)
     end
   end
   local ece, wrong, high, bins = calibration(conf, correct)
-  return { bins = bins, blocks = n, coverage = 100 * covered / math.max(n, 1), single = n1,
+  return { bins = bins, blocks = n, coverage = 100 * covered / math.max(n, 1),
+    coverage6 = 100 * covered6 / math.max(n, 1), single = n1,
     single_coverage = 100 * covered1 / math.max(n1, 1), ece = ece, wrong = wrong, high = high,
     ambiguous = #conf }
+end
+
+-- a layout set (bench/dev/layout_cube's form): its test log solved with the true layout, the
+-- body's true pose from any tag's (R_b = R Qᵀ, t_b = t - R_b p); coverage of the 95 %
+-- ellipsoid of the body pose (6 dof) on its true branch, for views of one tag and of more
+local function score_layout(dir, sigma)
+  local camera = assert(log.read_camera(dir .. "/camera.lua"))
+  local layout = assert(tagpose.layout.read(dir .. "/truth_layout.csv"))
+  local frames, order = {}, {}
+  for _, row in ipairs(assert(log.read_corners(dir .. "/test/corners.csv"))) do
+    local f = frames[row.frame]
+    if not f then
+      f = {}
+      frames[row.frame] = f
+      order[#order + 1] = row.frame
+    end
+    f[#f + 1] = { id = row.tag, corners = row.corners }
+  end
+  local truth = {}
+  for _, t in ipairs(assert(log.read_csv(dir .. "/test/truth_tags.csv"))) do
+    if not truth[t.frame] then
+      local q = layout.tags[t.tag].quaternion
+      local rb = rotation.multiply_transpose(rotation.from_quaternion(t.qw, t.qx, t.qy, t.qz),
+        rotation.from_quaternion(q.w, q.x, q.y, q.z))
+      local p = layout.tags[t.tag].position
+      truth[t.frame] = { t.x - (rb[1] * p.x + rb[2] * p.y + rb[3] * p.z),
+        t.y - (rb[4] * p.x + rb[5] * p.y + rb[6] * p.z),
+        t.z - (rb[7] * p.x + rb[8] * p.y + rb[9] * p.z), r = rb }
+    end
+  end
+  local n, inside = { 0, 0 }, { 0, 0 }
+  for _, id in ipairs(order) do
+    local body = tagpose.layout.solve(frames[id], camera, layout, { sigma = sigma })
+    local tt = truth[id]
+    if body and tt then
+      local e, k = error_of(body, tt.r, tt), #body.tags > 1 and 2 or 1
+      local alt = body.alternative
+      if alt then
+        local ea = error_of(alt, tt.r, tt)
+        if rotation_angle(ea) < rotation_angle(e) then body, e = alt, ea end
+      end
+      local m2 = mahalanobis(body.covariance, e, 6)
+      n[k] = n[k] + 1
+      if m2 and m2 < 12.59 then inside[k] = inside[k] + 1 end
+    end
+  end
+  return { n = n, coverage = { 100 * inside[1] / math.max(n[1], 1),
+    100 * inside[2] / math.max(n[2], 1) } }
 end
 
 local print_bins
@@ -297,13 +376,21 @@ local function run(dir)
   local name = dir:match("([^/]+)/*$")
   local _, info = log.read_camera(dir .. "/camera.lua")
   local sigma = opts.sigma or not opts.default_sigma and meta_sigma(dir) or nil
+  if exists(dir .. "/truth_layout.csv") then
+    local s = score_layout(dir, sigma)
+    print(("%-12s σ %-7s layout poses inside the 95 %% ellipsoid (6 dof): two tags or more "
+      .. "%.1f %% of %d, one tag %.1f %% of %d"):format(name, sigma and ("%g"):format(sigma)
+      or "default", s.coverage[2], s.n[2], s.coverage[1], s.n[1]))
+    return
+  end
   if type(info) == "table" and info.block_size then
     local s = score_blocks(dir, sigma)
     print(("%-12s σ %-7s blocks with 2+ faces %d: centre inside the 95 %% ellipsoid %.1f %%"
-      .. "   (one face, true branch: %d, %.1f %%; confidence ECE %.3f, wrong@.95 %.2f %% "
-      .. "(%d of %d))")
-      :format(name, sigma and ("%g"):format(sigma) or "frame", s.blocks, s.coverage, s.single,
-      s.single_coverage, s.ece, 100 * s.wrong / math.max(s.high, 1), s.wrong, s.high))
+      .. " (pose, 6 dof: %.1f %%)   (one face, true branch: %d, %.1f %%; confidence ECE %.3f, "
+      .. "wrong@.95 %.2f %% (%d of %d))")
+      :format(name, sigma and ("%g"):format(sigma) or "frame", s.blocks, s.coverage,
+      s.coverage6, s.single, s.single_coverage, s.ece, 100 * s.wrong / math.max(s.high, 1),
+      s.wrong, s.high))
     return print_bins(s)
   end
   local s = score_tags(dir, sigma)
@@ -328,7 +415,7 @@ end
 
 print(("tagpose uncertainty, %s%s, KAPPA %g%s"):format(_VERSION,
   rawget(_G, "jit") and " (LuaJIT)" or "", uncertainty.KAPPA, opts.track and ", --track" or ""))
-if exists(opts.dir .. "/corners.csv") then
+if exists(opts.dir .. "/corners.csv") or exists(opts.dir .. "/truth_layout.csv") then
   run(opts.dir)
 else
   local p = io.popen('ls -1 "' .. opts.dir .. '"')
@@ -338,6 +425,9 @@ else
   table.sort(names)
   for _, name in ipairs(names) do
     local sub = opts.dir:gsub("/*$", "") .. "/" .. name
-    if exists(sub .. "/corners.csv") and exists(sub .. "/truth.csv") then run(sub) end
+    if exists(sub .. "/corners.csv") and exists(sub .. "/truth.csv")
+      or exists(sub .. "/truth_layout.csv") then
+      run(sub)
+    end
   end
 end

@@ -26,6 +26,7 @@ build = {
   modules = {
     ["tagpose.tools.calibrate"] = "src/tagpose/tools/calibrate.lua",
     ["tagpose.tools.csv"] = "src/tagpose/tools/csv.lua",
+    ["tagpose.tools.files"] = "src/tagpose/tools/files.lua",
     ["tagpose.tools.log"] = "src/tagpose/tools/log.lua",
     ["tagpose.tools.plot.draw"] = "src/tagpose/tools/plot/draw.lua",
     ["tagpose.tools.plot.figure"] = "src/tagpose/tools/plot/figure.lua",

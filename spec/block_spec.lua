@@ -321,6 +321,28 @@ describe("tagpose.block", function()
       assert.is_true(abs(share - 0.95) < 4 * sqrt(0.0475 / n), ("coverage %.3f"):format(share))
     end)
 
+    -- Without options.sigma a frame with a block of two faces (10 residual degrees of freedom)
+    -- is judged by its own residuals, whatever σ they show, its covariance widened for σ² being
+    -- an estimate (Student's F): it covers as claimed at a σ well below and above the default.
+    for _, sigma in ipairs({ 0.15, 1 }) do
+      it("covers a two-face block's pose as it claims without sigma (σ " .. sigma .. " px)",
+        function()
+          local rng = geometry.rng(65)
+          local r, t, tags = random_block(rng, 2)
+          local n, inside = 500, 0
+          for _ = 1, n do
+            local b = tagpose.block.solve(renoise(tags, rng, sigma), camera, TAG, BLOCK)[1]
+            assert.equal(2, b.faces)
+            if gauss.mahalanobis(b.covariance, block_error(b, r, t)) < 12.59 then
+              inside = inside + 1
+            end
+          end
+          local share = inside / n
+          assert.is_true(abs(share - 0.95) < 4 * sqrt(0.0475 / n),
+            ("coverage %.3f"):format(share))
+        end)
+    end
+
     it("covers one-face blocks' centres on their true branch, with the tag's confidence",
       function()
         local rng = geometry.rng(62)

@@ -69,7 +69,7 @@ describe("bin/tagpose-calibrate", function()
     text, status = run.script("bin/tagpose-calibrate", dir .. "/corners.csv", "--layout",
       dir .. "/bad.csv")
     assert.equal(1, status, text)
-    assert.matches("bad.csv:2: column qz is not a number", text)
+    assert.matches("bad.csv:2: 8 fields, header has 9", text)
   end)
 
   it("refuses a bad command line with status 2", function()

@@ -122,7 +122,9 @@ describe("tagpose.solve() errors", function()
 
     it("for the mirrored (clockwise) corner order", function()
       fails({ good[1], good[4], good[3], good[2] },
-        "square: corners wind the wrong way round (mirrored order, or tag seen from behind)")
+        "square: corners wind the wrong way round (mirrored order, or tag seen from behind; "
+          .. "OpenCV's and ArUco's detectors give them top-left first: options.order = "
+          .. "'opencv')")
     end)
 
     it("when solveQuad has no iterations left", function()

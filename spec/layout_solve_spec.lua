@@ -198,6 +198,32 @@ describe("tagpose.layout", function()
       end
     end)
 
+    -- Without options.sigma a fit of n >= 2 tags (8n - 6 residual degrees of freedom) is judged
+    -- by its own residuals, its covariance widened for σ² being an estimate (Student's F): it
+    -- covers as claimed at a σ well below and above the default.
+    for _, sigma in ipairs({ 0.15, 1 }) do
+      it("covers a view of several tags as it claims without sigma (σ " .. sigma .. " px)",
+        function()
+          local rng = geometry.rng(22)
+          local camera = CAMERAS.pinhole
+          local nominal = layouts.cube(rng, 0.0229, 0.0548, 0, 0, 0)
+          local r = geometry.axis_angle(1, 1, 0.3, rad(130))
+          local t = { 0.01, -0.01, 0.3 }
+          local n, inside = 500, 0
+          for _ = 1, n do
+            local dets = layouts.detections(nominal, camera, r, t, rng, sigma)
+            assert.is_true(#dets >= 2)
+            local body = assert(tagpose.layout.solve(dets, camera, nominal))
+            if gauss.mahalanobis(body.covariance, gauss.error_of(body, r, t)) < 12.59 then
+              inside = inside + 1
+            end
+          end
+          local share = inside / n
+          assert.is_true(abs(share - 0.95) < 4 * sqrt(0.0475 / n),
+            ("coverage %.3f"):format(share))
+        end)
+    end
+
     it("gives a one-tag view the tag's own uncertainty, the covariance at the body origin",
       function()
         local rng = geometry.rng(23)

@@ -241,15 +241,22 @@ describe("tagpose.tools.log", function()
       assert.same({ "abc", 17 }, { rows[1].fields.line, rows[2].fields.line })
     end)
 
-    it("reports nan and inf in the frame or tag column, the same on every VM", function()
+    it("reports nan, inf and tags that are not ids in the frame or tag column, the same on every"
+      .. " VM", function()
       local rows, problems = read(HEADER .. "\n1,nan,1,2,3,4,5,6,7,8\nNaN,0,1,2,3,4,5,6,7,8\n"
         .. "3,-inf,1,2,3,4,5,6,7,8\n4,1e999,1,2,3,4,5,6,7,8\n5,0x10,1,2,3,4,5,6,7,8\n"
-        .. "6,0,nan,2,3,4,5,6,7,inf\n")
+        .. "6,0,nan,2,3,4,5,6,7,inf\n7,1.5,1,2,3,4,5,6,7,8\n8,1e19,1,2,3,4,5,6,7,8\n"
+        .. "9,-9007199254740992,1,2,3,4,5,6,7,8\n10,9007199254740991,1,2,3,4,5,6,7,8\n")
       assert.same({ "2: column tag is not finite (nan)", "3: column frame is not finite (NaN)",
         "4: column tag is not finite (-inf)", "5: column tag is not finite (1e999)",
-        "6: column tag is not a number" }, problems)
+        "6: column tag is not a number",
+        "8: column tag is not a tag id (1.5 is not a whole number of magnitude below 2^53)",
+        "9: column tag is not a tag id (1e19 is not a whole number of magnitude below 2^53)",
+        "10: column tag is not a tag id (-9007199254740992 is not a whole number of magnitude"
+          .. " below 2^53)" }, problems)
       -- corners that are not finite go to the solver, which refuses them
-      assert.equal(1, #rows)
+      assert.equal(2, #rows)
+      assert.equal(9007199254740991, rows[2].tag)
       local c = rows[1].corners
       assert.is_true(c[1][1] ~= c[1][1])
       assert.equal(math.huge, c[4][2])
@@ -298,14 +305,12 @@ describe("tagpose.tools.log", function()
     it("reads RFC 4180 quoted fields as a spreadsheet saves them", function()
       local rows, problems = read('"frame","tag","u1","v1","u2","v2","u3","v3","u4","v4","note"\r\n'
         .. '"1","0","1","2","3","4","5","6","7","8","a, ""quoted"" note"\r\n'
-        .. '2,0,1,2,3,4,5,6,7,8,"two\r\nlines"\r\n'
         .. '3,0,1,2,3,4,5,6,7,8, "spaced" \r\n')
       assert.same({}, problems)
-      assert.equal(3, #rows)
+      assert.equal(2, #rows)
       assert.equal('a, "quoted" note', rows[1].fields.note)
-      assert.equal("two\nlines", rows[2].fields.note)
-      assert.equal(5, rows[3].line)
-      assert.equal("spaced", rows[3].fields.note)
+      assert.equal(3, rows[2].line)
+      assert.equal("spaced", rows[2].fields.note)
     end)
 
     it("reports quoting errors with the line and goes on", function()
@@ -313,9 +318,30 @@ describe("tagpose.tools.log", function()
         .. '2,0,1,2,3,4,5,6,7,8"\n3,0,1,2,3,4,5,6,7,8\n4,0,1,2,3,4,5,6,7,"8\n')
       assert.same({ "2: text after the closing quote of field 10",
         '3: a quote inside field 10 (quote the whole field, with "" for a quote)',
-        "5: quoted field 10 not closed" }, problems)
+        "5: quoted field 10 not closed on its line" }, problems)
       assert.equal(1, #rows)
       assert.equal(4, rows[1].line)
+    end)
+
+    it("never reads a quoted field across lines: a stray quote costs its own line", function()
+      -- a quote opening a field anywhere in a long log, and one before a line end inside a
+      -- field that a spreadsheet would have read across lines
+      for _, stray in ipairs({ '"', ' "12.5', '"note' }) do
+        local lines = { HEADER .. ",note" }
+        for i = 1, 3000 do
+          lines[#lines + 1] = ("%d,%d,1,2,3,4,5,6,7,8,%s"):format(i, i % 7,
+            i == 1234 and stray or "x")
+        end
+        lines[#lines + 1] = '3001,0,1,2,3,4,5,6,7,8,"two'
+        lines[#lines + 1] = 'lines"'
+        local rows, problems = read(table.concat(lines, "\n") .. "\n")
+        assert.equal(3000 - 1, #rows, stray)
+        assert.equal("1235: quoted field 11 not closed on its line", problems[1])
+        assert.equal("3002: quoted field 11 not closed on its line", problems[2])
+        assert.matches("^3003: ", problems[3])
+        assert.equal(3, #problems)
+        assert.equal(1236, rows[1234].line)
+      end
     end)
 
     it("reports a line longer than MAX_RECORD and reads on", function()

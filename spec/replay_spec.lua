@@ -344,6 +344,46 @@ describe("bin/tagpose-replay on the inputs users have", function()
     assert.is_true(peaks[2] < peaks[1] + 2048, ("peak heap %d KiB for 500 rows, %d KiB for"
       .. " 2000"):format(peaks[1], peaks[2]))
   end)
+
+  it("keeps its memory bounded however many distinct tag ids a log holds", function()
+    local peaks = {}
+    for _, rows in ipairs({ 1000, 5000 }) do
+      local dir = tmp("ids" .. rows)
+      assert.equal(0, select(2, run.run("mkdir " .. run.quote(dir))))
+      assert.equal(0, select(2, run.script("bench/bounds.lua", "ids", dir, rows, 10)))
+      -- the bound on live tracks lowered to 100, so that both logs are well past it
+      local out, status = run.run(run.quote(run.lua()) .. " -e 'package.path = \"./src/?.lua;"
+        .. "./src/?/init.lua;\" .. package.path; require(\"tagpose.tools.replay.frames\")"
+        .. ".MAX_LIVE = 100' spec/support/peak_heap.lua " .. run.quote(dir .. "/corners.csv")
+        .. " --track --svg " .. run.quote(dir .. "/p.svg") .. " --compare "
+        .. run.quote(dir .. "/truth.csv") .. " 2>&1 >/dev/null")
+      run.run("rm -r " .. run.quote(dir))
+      assert.equal(0, status, out)
+      peaks[#peaks + 1] = tonumber(out:match("peak heap (%d+) KiB"))
+    end
+    -- each id's track, its pose and its compared track kept cost about 4.4 KiB an id (17 MB
+    -- more here); the tracks of ended ids are swept out, the live ones kept to MAX_LIVE
+    assert.is_true(peaks[2] < peaks[1] + 3072, ("peak heap %d KiB for 1000 ids, %d KiB for"
+      .. " 5000"):format(peaks[1], peaks[2]))
+  end)
+
+  it("drops the least recently seen live tracks past MAX_LIVE, and says so", function()
+    local dir = tmp("frame")
+    assert.equal(0, select(2, run.run("mkdir " .. run.quote(dir))))
+    assert.equal(0, select(2, run.script("bench/bounds.lua", "ids", dir, 300, 300)))
+    local out, status = run.run(run.quote(run.lua()) .. " -e 'package.path = \"./src/?.lua;"
+      .. "./src/?/init.lua;\" .. package.path; require(\"tagpose.tools.replay.frames\")"
+      .. ".MAX_LIVE = 50' bin/tagpose-replay " .. run.quote(dir .. "/corners.csv")
+      .. " --track --out " .. run.quote(dir .. "/p.csv") .. " 2>&1")
+    local poses = log.read_poses(dir .. "/p.csv")
+    run.run("rm -r " .. run.quote(dir))
+    assert.equal(0, status, out)
+    assert.matches("solved     300\n", out)
+    -- 300 live tracks in one frame, swept down to 50 each time more than 50 were started
+    -- since the last sweep (at 51, 102, 153, 204 and 255): 50 + 45 kept, 205 dropped
+    assert.matches("forgotten  205 live tracks dropped past 50", out)
+    assert.equal(300, #poses)
+  end)
 end)
 
 describe("examples/data", function()

@@ -171,8 +171,9 @@ describe("tagpose.core.square", function()
     it("rejects the mirrored (clockwise) order", function()
       local mirrored = { -0.1, 0.1, -0.1, -0.1, 0.1, -0.1, 0.1, 0.1 }
       local _, err = square.shape(mirrored)
-      assert.equal("square: corners wind the wrong way round "
-        .. "(mirrored order, or tag seen from behind)", err)
+      assert.equal("square: corners wind the wrong way round (mirrored order, or tag seen from "
+        .. "behind; OpenCV's and ArUco's detectors give them top-left first: options.order = "
+        .. "'opencv')", err)
     end)
   end)
 end)

@@ -9,6 +9,7 @@ local rotation = require("tagpose.core.rotation")
 local G = require("support.geometry")
 local assertions = require("support.assertions")
 local gauss = require("support.gauss")
+local run = require("support.run")
 
 local sqrt, abs, rad = math.sqrt, math.abs, math.rad
 
@@ -270,6 +271,82 @@ describe("tagpose.uncertainty", function()
             ("case %d: %.6f vs %.6f"):format(k, uncertainty.probability(lab), pose.confidence))
         end
       end
+    end)
+  end)
+
+  describe("noise() and ellipsoid()", function()
+    local Q6 = 12.591587243743977 -- χ²(6; 0.95)
+
+    it("takes a given σ as it is, the covariance without a factor", function()
+      local s2, kappa = uncertainty.noise(123, 0.3, 22)
+      assert.near(0.09, s2, 1e-15)
+      assert.equal(1, kappa)
+    end)
+
+    it("tops the residuals up with the default to DEFAULT_DOF + 2 degrees of freedom", function()
+      local d2, top = uncertainty.DEFAULT_SIGMA ^ 2, uncertainty.DEFAULT_DOF + 2
+      -- one tag's frame: the default pooled with its 2 (the single-tag rule)
+      assert.near((uncertainty.DEFAULT_DOF * d2 + 0.7) / top, uncertainty.noise(0.7), 1e-15)
+      assert.near((uncertainty.DEFAULT_DOF * d2 + 0.7) / top, uncertainty.noise(0.7, nil, 2),
+        1e-15)
+      assert.near(((top - 6) * d2 + 0.7) / top, uncertainty.noise(0.7, nil, 6), 1e-15)
+      -- a block of two faces (10) or a frame of 22: the residuals alone, whatever σ they show
+      assert.near(2.3 / 10, uncertainty.noise(2.3, nil, 10), 1e-15)
+      assert.near(0.09, uncertainty.noise(22 * 0.09, nil, 22), 1e-15)
+      assert.near(4, uncertainty.noise(22 * 4, nil, 22), 1e-15)
+    end)
+
+    it("is Student's from 10 degrees of freedom on: 6 F(6, ν; 0.95) / χ²(6; 0.95)", function()
+      -- published 95 % points of F with 6 and ν degrees of freedom
+      for _, c in ipairs({ { 10, 3.2172 }, { 12, 2.9961 }, { 20, 2.5990 }, { 30, 2.4205 },
+        { 40, 2.3359 }, { 60, 2.2541 }, { 120, 2.1750 } }) do
+        local nu, f = c[1], c[2]
+        local s2, kappa = uncertainty.noise(nu, nil, nu)
+        assert.near(1, s2, 1e-15)
+        assert.near(6 * f / Q6, kappa, 2e-3 * kappa, "ν = " .. nu)
+        assert.equal(kappa, uncertainty.ellipsoid(nu))
+      end
+      assert.near(1, uncertainty.ellipsoid(1e6), 1e-4)
+    end)
+
+    it("holds 95 % with fewer, σ being the default's (Monte-Carlo)", function()
+      -- the errors' Mahalanobis² at the true σ is χ²₆, the residuals' sum χ²_ν, independent
+      local rng = G.rng(4711)
+      local function chi2(k)
+        local sum = 0
+        for _ = 1, k do sum = sum + rng.normal() ^ 2 end
+        return sum
+      end
+      local top, n = uncertainty.DEFAULT_DOF + 2, 20000
+      for _, nu in ipairs({ 2, 4, 8 }) do
+        local kappa, inside = uncertainty.ellipsoid(nu), 0
+        for _ = 1, n do
+          if chi2(6) < kappa * Q6 * (top - nu + chi2(nu)) / top then inside = inside + 1 end
+        end
+        local share = inside / n
+        assert.is_true(abs(share - 0.95) < 4 * sqrt(0.0475 / n),
+          ("ν = %d: %.4f inside"):format(nu, share))
+      end
+    end)
+
+    it("is the table bench/ellipsoid_table.lua computes", function()
+      local text, status = run.script("bench/ellipsoid_table.lua")
+      assert.equal(0, status, text)
+      local numbers = {}
+      for v in text:match("ELLIPSOID = (%b{})"):gmatch("[%d.]+") do
+        numbers[#numbers + 1] = tonumber(v)
+      end
+      assert.equal(20, #numbers)
+      for i, v in ipairs(numbers) do
+        assert.near(v, uncertainty.ellipsoid(2 * i), 1e-12, "ν = " .. 2 * i)
+      end
+      -- and beyond the table, the tail is within 0.2 % of the exact factor
+      local checked = 0
+      for exact, tail in text:gmatch("exact ([%d.]+), tail ([%d.]+)") do
+        assert.is_true(abs(tonumber(tail) / tonumber(exact) - 1) < 2e-3, text)
+        checked = checked + 1
+      end
+      assert.equal(2, checked)
     end)
   end)
 

@@ -63,7 +63,7 @@ local TAGS = {
   { id = 2, centre = { 0.04, 0, 0 }, q = about(0, 1, 0, -20 * pi / 180) },
 }
 local H = TAG_SIZE / 2
-local CORNERS = { { -H, H, 0 }, { H, H, 0 }, { H, -H, 0 }, { -H, -H, 0 } } -- c1..c4, DESIGN.md
+local CORNERS = { { -H, H, 0 }, { H, H, 0 }, { H, -H, 0 }, { -H, -H, 0 } } -- c1..c4
 
 local function smoothstep(s) return s * s * (3 - 2 * s) end
 

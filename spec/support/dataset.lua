@@ -1,4 +1,4 @@
--- Read a data set in the format of shared/bench/dev (corners.csv, truth.csv, camera.lua).
+-- Read a data set in the format of bench/dev (corners.csv, truth.csv, camera.lua).
 
 local D = {}
 

@@ -1,6 +1,6 @@
 -- Ground truth for the specs, built from geometry alone (nothing here calls tagpose): a
--- deterministic random generator, rotations, the pinhole projection of DESIGN.md and a random
--- pose generator.
+-- deterministic random generator, rotations, the pinhole projection of docs/conventions.md
+-- and a random pose generator.
 
 local sqrt, sin, cos, pi = math.sqrt, math.sin, math.cos, math.pi
 
@@ -54,7 +54,7 @@ function G.nested(r)
   return { { r[1], r[2], r[3] }, { r[4], r[5], r[6] }, { r[7], r[8], r[9] } }
 end
 
---- Tag corners c1..c4 of DESIGN.md, side s, in the tag frame.
+--- Tag corners c1..c4 (docs/conventions.md), side s, in the tag frame.
 function G.tag_corners(s)
   local h = s / 2
   return { { -h, h, 0 }, { h, h, 0 }, { h, -h, 0 }, { -h, -h, 0 } }

@@ -38,6 +38,7 @@ local ON_DEMAND = {
   layout = "tagpose.layout",
   tracker = "tagpose.tracker",
   calibration = "tagpose.formats.calibration",
+  transform = "tagpose.transform",
 }
 
 setmetatable(M, {
@@ -54,7 +55,8 @@ local work = pipeline.new() -- the pipeline's workspace, reused by every solve
 local track -- tagpose.track, loaded with the first prior
 
 -- the options solve takes
-local OPTIONS = { "method", "prior", "into", "tolerance", "max_iterations", "sigma", "time" }
+local OPTIONS = { "method", "prior", "into", "tolerance", "max_iterations", "sigma", "time",
+  "order" }
 
 -- Read the options; or nil and a description of the misuse.
 local function read_options(options)
@@ -105,7 +107,16 @@ local function read_options(options)
     return nil, "options.time: finite number expected, got "
       .. (time ~= time and "NaN" or describe(time))
   end
+  local order = options.order
+  if order ~= nil and order ~= "apriltag" and order ~= "opencv" then
+    return nil, "options.order: 'apriltag' or 'opencv' expected, got " .. describe(order)
+  end
   return method, tol, max_it, prior, into, sigma, time
+end
+
+-- Whether the options put the corners in OpenCV's order (read before the corners are).
+local function opencv_order(options)
+  return type(options) == "table" and options.order == "opencv"
 end
 
 local function arg_error(n, message)
@@ -198,6 +209,9 @@ end
 --   - `sigma`: the standard deviation of the corner noise in pixels, for `covariance` and
 --     `confidence` (default: with `prior`, the tracker's running estimate; else
 --     `tagpose.uncertainty.DEFAULT_SIGMA` pooled with this frame's residuals);
+--   - `order`: `"apriltag"` (the default: the detection order c1..c4 above) or `"opencv"`
+--     (OpenCV's and ArUco's detectors: top-left, top-right, bottom-right, bottom-left of the
+--     printed tag, that is c4, c3, c2, c1);
 --   - `tolerance`: solveQuad's threshold (default 1e-10 for `"seed"`, `REFINED_TOLERANCE`
 --     for `"refined"`), `max_iterations`: its bound (default 100).
 -- @treturn table pose `{position = {x, y, z}, rotation = {{...}, {...}, {...}},
@@ -214,7 +228,7 @@ end
 --   {fx = 883.98, fy = 883.98, cx = 319.5, cy = 239.5}, 0.024)
 function M.solve(corners, camera, tag_size, options)
   local w = work
-  local bad, problem = args.read_corners(corners, w.px)
+  local bad, problem = args.read_corners(corners, w.px, opencv_order(options))
   if not bad then arg_error(1, problem) end
   problem = camera_model.check(camera)
   if problem then arg_error(2, problem) end

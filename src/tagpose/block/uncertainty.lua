@@ -10,9 +10,13 @@
 --
 -- The confidence: 1 with two or more faces (one pose); with one face, the tag's branch
 -- probability, or with `up` the two fits' Laplace evidence (their costs, priors included, and
--- the log-determinants of their normal equations). σ² is `options.sigma`², else the blocks'
--- pixel residuals (`8k - 6` degrees of freedom for a fit of `k` tags, 2 for a tag alone)
--- pooled with `tagpose.uncertainty.DEFAULT_SIGMA` as a single tag's σ² is.
+-- the log-determinants of their normal equations). σ² is `options.sigma`², else the frame's
+-- estimate from its blocks' pixel residuals (`8k - 6` degrees of freedom for a fit of `k` tags,
+-- 2 for a tag alone), the default standing in for the degrees of freedom they lack
+-- (`tagpose.uncertainty.noise`): a frame with a block of two faces or more has 10 or more and
+-- is judged by its own residuals. The confidences take σ²; the covariances take κ σ², κ the
+-- factor that makes their 95 % ellipsoid hold 95 % when σ² is an estimate
+-- (`tagpose.uncertainty.ellipsoid`, Student's F; 1 for a given σ).
 -- Covariances are nested 6×6, in the order (x, y, z, rx, ry, rz), as a tag's.
 -- @module tagpose.block.uncertainty
 
@@ -23,37 +27,39 @@ local huge = math.huge
 
 local M = {}
 
---- σ² (px²) of a frame's block covariances.
+--- σ² (px²) of a frame's block covariances and confidences; also sets `fr.ellipsoid`, the
+-- factor κ on the covariances (`tagpose.uncertainty.noise`).
 -- @tparam table fr the frame record (`tagpose.block.frame`)
 -- @tparam {table,...} found the blocks found, `{h =, other =}` each
 -- @treturn number σ²
 function M.noise(fr, found)
-  local sigma = fr.settings.sigma
-  if sigma then return sigma * sigma end
   local sse, dof = 0, 0
   for i = 1, #found do
     local h = found[i].h
     local k = #h.members
     sse, dof = sse + h.sse, dof + (k > 1 and 8 * k - 6 or 2)
   end
-  local d = uncertainty.DEFAULT_SIGMA
-  return (uncertainty.DEFAULT_DOF * d * d + sse) / (uncertainty.DEFAULT_DOF + dof)
+  local sigma2, kappa = uncertainty.noise(sse, fr.settings.sigma, dof)
+  fr.ellipsoid = kappa
+  return sigma2
 end
 
 local normal = {} -- a joint fit's normal equations
 local tag_cov -- scratch: a tag's covariance before it is moved (made on first use)
 
--- A hypothesis's covariance and the ln det of its normal equations (nil for a tag not fitted).
+-- A hypothesis's covariance, κ σ² H⁻¹, and the ln det of its normal equations (nil for a tag
+-- not fitted).
 local function fitted_covariance(fr, h, sigma2)
   local cost = fit.normal(fr, h, normal)
   if not (cost < huge) then return nil end
-  return uncertainty.from_normal(normal, sigma2, 0)
+  return uncertainty.from_normal(normal, (fr.ellipsoid or 1) * sigma2, 0)
 end
 
 -- A one-face block's covariance from its tag's candidate a (assessed: its chord factor and
--- chord set).
-local function tag_covariance(a, sigma2)
-  local C = uncertainty.covariance(a.tag, sigma2, tag_cov)
+-- chord set): the tag's covariance, times κ, moved to the centre.
+local function tag_covariance(fr, a, sigma2)
+  local kappa, t = fr.ellipsoid or 1, a.tag
+  local C = uncertainty.from_normal(t.normal, kappa * sigma2, kappa * t.k, t.chord, tag_cov)
   tag_cov = C
   return uncertainty.move(C, a.x - a.tag.tx, a.y - a.tag.ty, a.z - a.tag.tz)
 end
@@ -83,10 +89,10 @@ function M.attach(fr, f, b, sigma2)
   local ca = fr.dets[h.members[1]].cands[h.cands[1]]
   local cb = o and fr.dets[o.members[1]].cands[o.cands[1]]
   uncertainty.assess(ca.tag, cb and cb.tag, sigma2)
-  b.covariance = tag_covariance(ca, sigma2)
+  b.covariance = tag_covariance(fr, ca, sigma2)
   b.confidence = ca.tag.confidence
   if cb and a then
-    a.covariance = tag_covariance(cb, sigma2)
+    a.covariance = tag_covariance(fr, cb, sigma2)
     a.confidence = cb.tag.confidence
   end
 end

@@ -78,12 +78,15 @@ function M.check_sizes(v, name)
 end
 
 --- Read four corners (`{u, v}` or `{x = u, y = v}` each) into the flat array `out`
--- (`{u1, v1, ..., u4, v4}`).
+-- (`{u1, v1, ..., u4, v4}`, in the detection order c1..c4).
 -- @tparam any corners
 -- @tparam {number,...} out array to fill
--- @treturn true|int `true`, or the index of the first corner that is not finite
+-- @tparam[opt] boolean opencv the corners are in OpenCV's and ArUco's order (top-left, top-right,
+--   bottom-right, bottom-left of the printed tag: c4, c3, c2, c1)
+-- @treturn true|int `true`, or the index of the first corner that is not finite (in the order
+--   given)
 -- @return false, string when `corners` is not four corners (the misuse, for an error message)
-function M.read_corners(corners, out)
+function M.read_corners(corners, out, opencv)
   if type(corners) ~= "table" then
     return false, "table of four corners expected, got " .. type(corners)
   end
@@ -111,7 +114,8 @@ function M.read_corners(corners, out)
     -- finite exactly when u - u is 0 (NaN and ±inf give NaN)
     if bad == true and not (u - u == 0 and v - v == 0) then bad = i end
     -- as floats: integer pixels near math.mininteger would wrap around in u - cx (Lua 5.3+)
-    out[2 * i - 1], out[2 * i] = u + 0.0, v + 0.0
+    local k = opencv and 5 - i or i
+    out[2 * k - 1], out[2 * k] = u + 0.0, v + 0.0
   end
   return bad
 end

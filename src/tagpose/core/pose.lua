@@ -3,7 +3,7 @@
 --
 -- Internally a pose is a flat rotation `r` (row-major 3×3, tag → camera, see
 -- `tagpose.rotation`) and a translation `tx, ty, tz` (the tag centre in the camera frame, in the
--- unit of the tag size). The tag's corners, in the detection order of DESIGN.md, are
+-- unit of the tag size). The tag's corners, in the detection order (docs/conventions.md), are
 -- `c1 = (-h, +h, 0)`, `c2 = (+h, +h, 0)`, `c3 = (+h, -h, 0)`, `c4 = (-h, -h, 0)`, `h` half the
 -- side. Pixels are a flat array `{u1, v1, u2, v2, u3, v3, u4, v4}`.
 -- @module tagpose.core.pose
@@ -51,7 +51,7 @@ function M.reprojection_error(C, r, tx, ty, tz, half, px)
   return sqrt(sum / 4)
 end
 
---- Fill (or create) the public pose table of DESIGN.md from a candidate pose.
+--- Fill (or create) a public pose table from a candidate pose.
 -- A new table is built with table constructors (one allocation per table); `into` is filled in
 -- place, reusing its sub-tables, so that a caller who passes the same table every frame
 -- allocates nothing.

@@ -30,14 +30,27 @@ local to_nested = rotation.to_nested
 local M = {}
 
 -- The slots of a result's metatable. Filled at the solve: CAMERA .. LIN_B (ERR_B false when
--- the pose is the only minimum); filled when the fields are first read: ALT on.
+-- the pose is the only minimum); READ, false until a field is first read: then a record of
+-- what was made (its slots X_...), so that the metatable itself never grows.
 local CAMERA, HALF, SIGMA2, SIDE, TIME, FIRST, CHECK = 1, 2, 3, 4, 5, 6, 7
 local H_A, H_B = 7, 28 -- H of each candidate: slots 8..28 and 29..49
 local SSE_A, SSE_B = 50, 51
 local R_B, T_B, Q_B = 51, 60, 63 -- the other candidate: r 52..60, t 61..63, q 64..67
 local ERR_B, LIN_B = 68, 69
-local ALT, ANALYSED, K_A, K_B, CHORD = 70, 71, 72, 73, 73 -- chord: 74..79
-local COV_A, COV_B, TRACK = 80, 81, 82 -- the tables made before, to fill again
+local READ = 70
+local X_ALT, X_ANALYSED, X_K_A, X_K_B, X_CHORD = 1, 2, 3, 4, 4 -- chord: 5..10
+local X_COV_A, X_COV_B, X_TRACK = 11, 12, 13 -- the tables made before, to fill again
+local X_KAPPA = 14 -- the covariance's factor for an estimated σ (`tagpose.uncertainty.noise`)
+
+-- The record of what was made on read (made at the first read; one table, at its size).
+local function made(mt)
+  local x = mt[READ]
+  if not x then
+    x = { false, false, 0, 0, 0, 0, 0, 0, 0, 0, false, false, false, 1 }
+    mt[READ] = x
+  end
+  return x
+end
 
 local lazy = {} -- the modules the fields made on read need, loaded with them
 local cand_a, cand_b -- the records the uncertainty takes, rebuilt from a metatable
@@ -83,31 +96,38 @@ end
 -- The branch analysis of a result, once: σ², the chord factors and the chord into the
 -- metatable, both confidences unless a tracker set them.
 local function analyse(mt)
-  if mt[ANALYSED] then return end
+  local x = made(mt)
+  if x[X_ANALYSED] then return x end
   local a, b = candidates(mt)
-  local sigma2 = mt[SIGMA2] or lazy.uncertainty.noise(a.sse)
+  local sigma2, kappa = mt[SIGMA2], 1
+  if not sigma2 then sigma2, kappa = lazy.uncertainty.noise(a.sse) end
   lazy.uncertainty.assess(a, b, sigma2)
-  mt[SIGMA2], mt[K_A], mt[K_B], mt[ANALYSED] = sigma2, a.k, b and b.k or 0, true
+  mt[SIGMA2], x[X_K_A], x[X_K_B], x[X_ANALYSED], x[X_KAPPA] = sigma2, a.k, b and b.k or 0,
+    true, kappa
   local d = a.chord
-  for i = 1, 6 do mt[CHORD + i] = b and d[i] or 0 end
+  for i = 1, 6 do x[X_CHORD + i] = b and d[i] or 0 end
   local first = mt[FIRST]
   if rawget(first, "confidence") == nil then
     rawset(first, "confidence", a.confidence)
-    local alt = mt[ALT]
+    local alt = x[X_ALT]
     if b and alt then rawset(alt, "confidence", b.confidence) end
   end
+  return x
 end
 
 -- The covariance of the returned pose, or of its alternative.
-local function covariance(mt, is_alt)
+local function covariance(mt, x, is_alt)
   if analysed ~= mt then candidates(mt) end
-  local c, slot, k, sign = cand_a, COV_A, mt[K_A], 1
-  if is_alt then c, slot, k, sign = cand_b, COV_B, mt[K_B], -1 end
-  c.k = k
+  local c, slot, k, sign = cand_a, X_COV_A, x[X_K_A], 1
+  if is_alt then c, slot, k, sign = cand_b, X_COV_B, x[X_K_B], -1 end
+  -- (σ² estimated from the frame: the covariance and its chord term widened by κ, so that its
+  -- 95 % ellipsoid holds 95 %; the confidence took σ² itself)
+  local kappa = x[X_KAPPA]
+  c.k = kappa * k
   local d = c.chord
-  for i = 1, 6 do d[i] = sign * mt[CHORD + i] end
-  local cov = lazy.uncertainty.covariance(c, mt[SIGMA2], mt[slot] or nil)
-  mt[slot] = cov
+  for i = 1, 6 do d[i] = sign * x[X_CHORD + i] end
+  local cov = lazy.uncertainty.covariance(c, kappa * mt[SIGMA2], x[slot] or nil)
+  x[slot] = cov
   return cov
 end
 
@@ -116,7 +136,8 @@ local spare = setmetatable({}, { __mode = "k" }) -- a result -> an alternative t
 -- The alternative's table, from the metatable (made once, into a table made before if any).
 local function alternative(mt)
   local first = mt[FIRST]
-  local alt = mt[ALT] or spare[first] or {}
+  local x = made(mt)
+  local alt = x[X_ALT] or spare[first] or {}
   spare[first] = nil
   local p, q, rt = alt.position, alt.quaternion, alt.rotation
   if type(p) ~= "table" then p = {} end
@@ -134,7 +155,7 @@ local function alternative(mt)
     mt[LIN_B] or nil
   local conf = rawget(first, "confidence")
   alt.confidence, alt.covariance = conf ~= nil and 1 - conf or nil, nil
-  mt[ALT] = alt
+  x[X_ALT] = alt
   return setmetatable(alt, mt)
 end
 
@@ -152,15 +173,15 @@ local function made_on_read(t, key)
     analyse(mt)
     return rawget(t, key)
   elseif key == "covariance" then
-    analyse(mt)
-    local cov = covariance(mt, is_alt)
+    local cov = covariance(mt, analyse(mt), is_alt)
     rawset(t, "covariance", cov)
     return cov
   elseif key == "track" and not is_alt then
     local a, b = candidates(mt)
     local track = require("tagpose.track")
-    local state = mt[TRACK] or track.new_state()
-    mt[TRACK] = state
+    local x = made(mt)
+    local state = x[X_TRACK] or track.new_state()
+    x[X_TRACK] = state
     track.step(nil, a, b, mt[SIDE], mt[TIME] or nil, state)
     rawset(t, "track", state)
     return state
@@ -237,13 +258,16 @@ function M.new(a, ea, b, eb, iterations, la, lb, camera, half, sigma2, side, tim
       nb[1], nb[2], nb[3], nb[4], nb[5], nb[6], nb[7], nb[8], nb[9], nb[10], nb[11], nb[12],
       nb[13], nb[14], nb[15], nb[16], nb[17], nb[18], nb[19], nb[20], nb[21],
       a.sse, b.sse, r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8], r[9], b.tx, b.ty, b.tz,
-      b.qw, b.qx, b.qy, b.qz, count == 2 and eb, lb or false, __index = made_on_read })
+      b.qw, b.qx, b.qy, b.qz, count == 2 and eb, lb or false, false, __index = made_on_read })
     if count == 1 then result.confidence = 1 end
     return result
   end
   if analysed == mt then analysed = nil end
-  local alt = rawget(mt, ALT)
-  if alt then spare[result] = alt end
+  local x = mt[READ]
+  if x then
+    if x[X_ALT] then spare[result] = x[X_ALT] end
+    x[X_ALT], x[X_ANALYSED] = false, false
+  end
   mt[CAMERA], mt[HALF], mt[SIGMA2], mt[SIDE], mt[TIME], mt[FIRST], mt[CHECK] =
     camera, half, sigma2 or false, side, time or false, result, sum
   for i = 1, 21 do mt[H_A + i], mt[H_B + i] = na[i], nb[i] end
@@ -251,7 +275,7 @@ function M.new(a, ea, b, eb, iterations, la, lb, camera, half, sigma2, side, tim
   for i = 1, 9 do mt[R_B + i] = r[i] end
   mt[T_B + 1], mt[T_B + 2], mt[T_B + 3] = b.tx, b.ty, b.tz
   mt[Q_B + 1], mt[Q_B + 2], mt[Q_B + 3], mt[Q_B + 4] = b.qw, b.qx, b.qy, b.qz
-  mt[ERR_B], mt[LIN_B], mt[ALT], mt[ANALYSED] = count == 2 and eb, lb or false, false, false
+  mt[ERR_B], mt[LIN_B] = count == 2 and eb, lb or false
   if count == 1 then result.confidence = 1 end
   return result
 end

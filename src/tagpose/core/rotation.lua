@@ -294,4 +294,99 @@ function M.of_pose(p, out)
   return nil
 end
 
+---------------------------------------------------------------------------------------------
+-- Roll, pitch and yaw: `R = Rz(yaw)·Ry(pitch)·Rx(roll)`, ROS's convention (tf2's `setRPY`,
+-- REP 103's fixed axes: roll about x first, then pitch about the fixed y, then yaw about the
+-- fixed z). Unlike the functions above these are entry points of their own
+-- (`tagpose.rotation.to_rpy`, `from_rpy`), so they check their arguments.
+
+local args = require("tagpose.core.args")
+
+--- Below this `cos(pitch)` (the length of R's first column's x, y part) `to_rpy` is at gimbal
+-- lock: roll and yaw turn about one axis there, so yaw is set to 0 and roll carries the turn
+-- (as tf2's `getRPY`). The rotation it describes is still R to 2·10⁻¹³.
+M.GIMBAL_LOCK = 1e-13
+--- How far from orthonormal (largest entry of `R·Rᵀ - I`) a rotation given to `to_rpy` may be.
+M.RPY_TOLERANCE = 1e-6
+
+local rpy_flat = {}
+
+--- Roll, pitch and yaw of a rotation matrix, `R = Rz(yaw)·Ry(pitch)·Rx(roll)` (ROS's
+-- convention). Yaw comes from R's first column, then roll from the second row of `Rz(-yaw)·R`,
+-- which is `(0, cos roll, -sin roll)` whatever the pitch: so `from_rpy(to_rpy(R))` is R to
+-- round-off everywhere, at and near gimbal lock too (pitch ±π/2, see `GIMBAL_LOCK`).
+-- @tparam table r the rotation: nested `r[row][col]` (the shape of `pose.rotation`) or the
+--   flat row-major nine numbers of this module's other functions
+-- @treturn number roll, in [-π, π]
+-- @treturn number pitch, in [-π/2, π/2]
+-- @treturn number yaw, in [-π, π] (0 at gimbal lock)
+-- @raise `bad argument #1 to 'to_rpy' (...)` when r is not a 3×3 of finite numbers or not a
+--   rotation (`RPY_TOLERANCE`)
+-- @usage
+-- local roll, pitch, yaw = tagpose.rotation.to_rpy(pose.rotation)
+function M.to_rpy(r)
+  local bad = type(r) ~= "table"
+  if not bad then
+    if type(r[1]) == "table" then
+      bad = type(r[2]) ~= "table" or type(r[3]) ~= "table"
+      if not bad then r = M.from_nested(r, rpy_flat) end
+    end
+  end
+  if not bad then
+    for i = 1, 9 do
+      if not is_finite(r[i]) then bad = true end
+    end
+  end
+  if bad then
+    args.raise(1, "to_rpy", "rotation matrix expected: nested {{r11, r12, r13}, {r21, r22, r23}, "
+      .. "{r31, r32, r33}} or flat {r11, ..., r33} of finite numbers", 2)
+  end
+  local r11, r12, r13, r21, r22, r23, r31 = r[1], r[2], r[3], r[4], r[5], r[6], r[7]
+  local worst = 0
+  for i = 0, 6, 3 do
+    for j = 0, 6, 3 do
+      local d = r[i + 1] * r[j + 1] + r[i + 2] * r[j + 2] + r[i + 3] * r[j + 3]
+      if i == j then d = d - 1 end
+      if d < 0 then d = -d end
+      if d > worst then worst = d end
+    end
+  end
+  local det = r11 * (r22 * r[9] - r23 * r[8]) - r12 * (r21 * r[9] - r23 * r31)
+    + r13 * (r21 * r[8] - r22 * r31)
+  if not (worst <= M.RPY_TOLERANCE and det > 0) then
+    args.raise(1, "to_rpy", ("not a rotation matrix (largest entry of R·Rᵀ - I %.3g, "
+      .. "determinant %.3g)"):format(worst, det), 2)
+  end
+  local h = sqrt(r11 * r11 + r21 * r21)
+  local yaw = 0
+  if h >= M.GIMBAL_LOCK then yaw = atan2(r21, r11) end
+  local cy, sy = cos(yaw), sin(yaw)
+  local roll = atan2(sy * r13 - cy * r23, cy * r22 - sy * r12)
+  return roll, atan2(-r31, h), yaw
+end
+
+--- The rotation of roll, pitch and yaw, `R = Rz(yaw)·Ry(pitch)·Rx(roll)` (ROS's convention).
+-- @tparam number roll radians, about x
+-- @tparam number pitch radians, about y
+-- @tparam number yaw radians, about z
+-- @treturn table nested `{{r11, r12, r13}, {r21, r22, r23}, {r31, r32, r33}}` (the shape of
+--   `pose.rotation`; `from_nested` makes it flat)
+-- @raise `bad argument #n to 'from_rpy' (finite number expected, got ...)`
+-- @usage
+-- local mount = { position = { x = 0.3, y = 0, z = 0.5 },
+--   rotation = tagpose.rotation.from_rpy(0, math.rad(-15), 0) }
+function M.from_rpy(roll, pitch, yaw)
+  local bad = not is_finite(roll) and 1 or not is_finite(pitch) and 2 or not is_finite(yaw) and 3
+  if bad then
+    args.raise(bad, "from_rpy", "finite number expected, got "
+      .. args.describe(select(bad, roll, pitch, yaw)), 2)
+  end
+  local cr, sr, cp, sp, cy, sy = cos(roll), sin(roll), cos(pitch), sin(pitch), cos(yaw), sin(yaw)
+  return {
+    { cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr },
+    { sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr },
+    { -sp, cp * sr, cp * cr },
+  }
+end
+
 return M

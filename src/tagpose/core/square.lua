@@ -2,12 +2,12 @@
 --
 -- Input everywhere is the flat array `m` of the four corners in normalised, undistorted image
 -- coordinates, `{x1, y1, x2, y2, x3, y3, x4, y4}` with `xi = (ui - cx) / fx`,
--- `yi = (vi - cy) / fy`, corners in the detection order of DESIGN.md (c1..c4).
+-- `yi = (vi - cy) / fy`, corners in the detection order (c1..c4, docs/conventions.md).
 --
 -- The report's nine unknowns are the tag centre `C = (x, y, z)` and the half-side vectors
 -- `A = (a, b, c)`, `P = (p, q, r)`, with corners `P1 = C + A + P`, `P2 = C + A - P`,
--- `P3 = C - A - P`, `P4 = C - A + P`. In the tag frame of DESIGN.md, `A = +y_tag * s/2` and
--- `P = -x_tag * s/2`.
+-- `P3 = C - A - P`, `P4 = C - A + P`. In the tag frame (docs/conventions.md),
+-- `A = +y_tag * s/2` and `P = -x_tag * s/2`.
 --
 -- Every corner lies on its ray: `Pi = λi * (xi, yi, 1)`, where `λi` is the corner's depth. The
 -- report's linear systems (its equations 9, 13 and 16) are solved here in that form, in closed
@@ -87,7 +87,9 @@ function M.shape(m)
     return nil, "square: corners are collinear"
   end
   if o234 < 0 and o134 < 0 and o124 < 0 and o123 < 0 then
-    return nil, "square: corners wind the wrong way round (mirrored order, or tag seen from behind)"
+    return nil, "square: corners wind the wrong way round (mirrored order, or tag seen from "
+      .. "behind; OpenCV's and ArUco's detectors give them top-left first: options.order = "
+      .. "'opencv')"
   end
   return nil, "square: corners are not a convex quadrilateral"
 end

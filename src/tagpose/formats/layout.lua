@@ -11,8 +11,19 @@
 --   `R_tagpose = R_ros·diag(1, -1, -1)`, so each quaternion is multiplied on the right by
 --   `(0, 1, 0, 0)` on reading and on writing (the turn is its own inverse); positions, sizes and
 --   the body frame are the same;
--- * CSV (`.csv`): `id,size,x,y,z,qw,qx,qy,qz`, one tag a line (the data sets' form);
+-- * CSV (`.csv`): `id,size,x,y,z,qw,qx,qy,qz`, one tag a line (the data sets' form). The
+--   header names each column once (further columns are ignored), every line has as many
+--   fields as the header, numbers are decimal numerals (`compat.decimal`, as a corner log's:
+--   no hexadecimal, no `inf`, no quotes, no spaces inside); blank lines and lines starting
+--   with `#` are skipped;
 -- * WPILib field maps (`.json`, read only): `tagpose.formats.wpilib`.
+--
+-- Ids are whole numbers of magnitude below 2^53 (`tagpose.layout.model.is_id`), in every
+-- format, read and written. A file larger than `MAX_BYTES` is refused unread. Writing checks
+-- and encodes everything first and then writes the file whole (`tagpose.formats.output`: a
+-- temporary file renamed onto the target), so a refused layout or a failed write leaves the
+-- old file as it was. A name is written so that the format's reader gives it back: escaped in
+-- YAML (double quotes) and Lua (`\ddd`); a YAML name must be UTF-8 text.
 --
 -- Errors are `nil, "path:LINE: reason"`.
 -- @module tagpose.formats.layout
@@ -20,10 +31,16 @@
 local model = require("tagpose.layout.model")
 local yaml = require("tagpose.formats.yaml")
 local luadata = require("tagpose.formats.luadata")
+local output = require("tagpose.formats.output")
+local compat = require("tagpose.core.compat")
 
-local format, concat = string.format, table.concat
+local format, concat, byte = string.format, table.concat, string.byte
+local decimal = compat.decimal
 
 local M = {}
+
+--- Largest layout file read, in bytes (some 7000 tags in CSV, 4000 in a Lua file).
+M.MAX_BYTES = 1048576
 
 local CSV_COLUMNS = { "id", "size", "x", "y", "z", "qw", "qx", "qy", "qz" }
 
@@ -46,46 +63,84 @@ local function extension(path)
 end
 
 local function read_text(path)
-  local f, err = io.open(path, "r")
+  local f, err = io.open(path, "rb")
   if not f then return nil, "layout: " .. tostring(err) end
-  local text = f:read("*a")
+  local text, rerr = f:read(M.MAX_BYTES + 1)
   f:close()
+  if text == nil then
+    if rerr then return nil, "layout: " .. path .. ": " .. tostring(rerr) end
+    text = ""
+  end
+  if #text > M.MAX_BYTES then
+    return nil, "layout: " .. path .. ": larger than " .. M.MAX_BYTES .. " bytes (a layout of"
+      .. " thousands of tags is smaller)"
+  end
   return text
 end
 
---- Decode a CSV layout table `id,size,x,y,z,qw,qx,qy,qz`.
+-- "WHAT is not a tag id (...)"
+local function not_id(what)
+  return what .. " is not a tag id (" .. model.ID .. ")"
+end
+
+-- The fields of a CSV line, trimmed.
+local function csv_fields(line)
+  local fields = {}
+  for v in (line .. ","):gmatch("([^,]*),") do fields[#fields + 1] = v:match("^%s*(.-)%s*$") end
+  return fields
+end
+
+-- The header's columns by name, or nil and why.
+local function csv_header(fields)
+  local header = {}
+  for i, h in ipairs(fields) do
+    if h == "" then return nil, "header column " .. i .. " has no name" end
+    if header[h] then return nil, "header names column " .. h .. " twice" end
+    header[h] = i
+  end
+  for _, c in ipairs(CSV_COLUMNS) do
+    if not header[c] then return nil, "header has no column " .. c end
+  end
+  return header
+end
+
+--- Decode a CSV layout table `id,size,x,y,z,qw,qx,qy,qz` (see the module's header).
 -- @tparam string text
 -- @tparam string name the file's name, for messages
 -- @treturn table layout
 -- @return nil, string `name:LINE: reason`
 function M.decode_csv(text, name)
-  local header, tags, n = nil, {}, 0
+  local header, width, tags, n = nil, nil, {}, 0
+  if text:sub(1, 3) == "\239\187\191" then text = text:sub(4) end
+  text = text:gsub("\r\n?", "\n")
   for line in (text .. "\n"):gmatch("([^\n]*)\n") do
     n = n + 1
-    line = line:gsub("\r$", "")
     if not (line:match("^%s*$") or line:match("^%s*#")) then
-      local fields = {}
-      for v in (line .. ","):gmatch("([^,]*),") do fields[#fields + 1] = v:match("^%s*(.-)%s*$") end
       local at = name .. ":" .. n .. ": "
+      local fields = csv_fields(line)
       if not header then
-        header = {}
-        for i, h in ipairs(fields) do header[h] = i end
-        for _, c in ipairs(CSV_COLUMNS) do
-          if not header[c] then return nil, at .. "header has no column " .. c end
-        end
+        local why
+        header, why = csv_header(fields)
+        if not header then return nil, at .. why end
+        width = #fields
       else
+        if #fields ~= width then
+          return nil, at .. #fields .. " fields, header has " .. width
+        end
         local row = {}
         for _, c in ipairs(CSV_COLUMNS) do
-          local v = tonumber(fields[header[c]])
+          local v = decimal(fields[header[c]])
           if v == nil then return nil, at .. "column " .. c .. " is not a number" end
           row[c] = v
         end
-        if not model.is_id(row.id) then return nil, at .. "id is not a whole number" end
-        if tags[row.id] then return nil, at .. "tag " .. row.id .. " is listed twice" end
+        if not model.is_id(row.id) then return nil, at .. not_id("id " .. tostring(row.id)) end
+        if tags[row.id] then
+          return nil, at .. "tag " .. M.id_text(row.id) .. " is listed twice"
+        end
         local entry = { size = row.size, position = { x = row.x, y = row.y, z = row.z },
           quaternion = { w = row.qw, x = row.qx, y = row.qy, z = row.qz } }
-        local _, why = model.read_tag(entry, row.id)
-        if why then return nil, at .. why end
+        local _, rwhy = model.read_tag(entry, row.id)
+        if rwhy then return nil, at .. rwhy end
         tags[row.id] = entry
       end
     end
@@ -150,8 +205,8 @@ function M.decode_yaml(text, name, bundle)
       if not x then return nil, why end
       v[key] = x
     end
-    if not model.is_id(v.id) then return nil, at .. "id is not a whole number" end
-    if tags[v.id] then return nil, at .. "tag " .. v.id .. " is listed twice" end
+    if not model.is_id(v.id) then return nil, at .. not_id("id " .. tostring(v.id)) end
+    if tags[v.id] then return nil, at .. "tag " .. M.id_text(v.id) .. " is listed twice" end
     local w, x, y, z = M.flip(v.qw, v.qx, v.qy, v.qz)
     if w < 0 then w, x, y, z = -w, -x, -y, -z end
     local entry = { size = v.size, position = { x = v.x, y = v.y, z = v.z },
@@ -196,7 +251,7 @@ function M.decode_lua(text, name)
   for id, entry in pairs(tags) do
     local line = where[tags] and where[tags][id] or first or 1
     if not model.is_id(id) then
-      return nil, name .. ":" .. line .. ": tags: key " .. tostring(id) .. " is not a tag id"
+      return nil, name .. ":" .. line .. ": " .. not_id("tags: key " .. tostring(id))
     end
     local _, why = model.read_tag(entry, id)
     if why then return nil, name .. ":" .. line .. ": " .. why end
@@ -207,6 +262,16 @@ end
 local function num(v)
   return format("%.17g", v)
 end
+
+--- An id as the files write it (a whole number, no exponent, no `-0`).
+-- @tparam number id a tag id (`tagpose.layout.model.is_id`)
+-- @treturn string
+function M.id_text(id)
+  if id == 0 then return "0" end
+  return format("%.0f", id)
+end
+
+local id_text = M.id_text
 
 -- the read layout's entries, by id
 local function each(tags)
@@ -221,26 +286,65 @@ local function each(tags)
   end
 end
 
---- Encode a read layout as CSV.
+--- Encode a read layout as CSV (a CSV layout has no name).
 -- @tparam table tags a layout read by `tagpose.layout.model.read`
 -- @treturn string
 function M.encode_csv(tags)
   local lines = { concat(CSV_COLUMNS, ",") }
   for id, e in each(tags) do
     local p, q = e.position, e.quaternion
-    lines[#lines + 1] = concat({ format("%d", id), num(e.size), num(p.x), num(p.y), num(p.z),
+    lines[#lines + 1] = concat({ id_text(id), num(e.size), num(p.x), num(p.y), num(p.z),
       num(q.w), num(q.x), num(q.y), num(q.z) }, ",")
   end
   return concat(lines, "\n") .. "\n"
 end
 
+-- True when s is UTF-8 text (no byte out of place, no overlong or surrogate form).
+local function is_utf8(s)
+  local i, n = 1, #s
+  while i <= n do
+    local c = byte(s, i)
+    local len, lo = 1, 0
+    if c >= 0xF0 and c <= 0xF4 then
+      len, lo = 4, (c == 0xF0 and 0x90 or 0x80)
+    elseif c >= 0xE0 and c <= 0xEF then
+      len, lo = 3, (c == 0xE0 and 0xA0 or 0x80)
+    elseif c >= 0xC2 and c <= 0xDF then
+      len, lo = 2, 0x80
+    elseif c >= 0x80 then
+      return false
+    end
+    for k = 1, len - 1 do
+      local b = byte(s, i + k)
+      local hi = (k == 1 and (c == 0xED and 0x9F or c == 0xF4 and 0x8F)) or 0xBF
+      if not b or b < (k == 1 and lo or 0x80) or b > hi then return false end
+    end
+    i = i + len
+  end
+  return true
+end
+
+-- A YAML double-quoted scalar of s (UTF-8 text): `"` and `\` escaped, control characters as
+-- `\xNN` (their code points).
 local function quote_yaml(s)
-  return "'" .. s:gsub("'", "''") .. "'"
+  return '"' .. s:gsub('[%c"\\\127]', function(c)
+    if c == '"' or c == "\\" then return "\\" .. c end
+    return format("\\x%02X", byte(c))
+  end) .. '"'
+end
+
+-- A Lua string literal of s that tagpose.luadata reads back: `"` and `\` escaped, control
+-- characters as `\ddd` (three digits).
+local function quote_lua(s)
+  return '"' .. s:gsub('[%c"\\\127]', function(c)
+    if c == '"' or c == "\\" then return "\\" .. c end
+    return format("\\%03d", byte(c))
+  end) .. '"'
 end
 
 --- Encode a read layout as an apriltag_ros `tags.yaml` of one bundle (tag frames converted).
 -- @tparam table tags a read layout
--- @tparam[opt="layout"] string name the bundle's name
+-- @tparam[opt="layout"] string name the bundle's name (UTF-8 text)
 -- @treturn string
 function M.encode_yaml(tags, name)
   local lines = { "# apriltag_ros tag bundle, written by tagpose (tag frames as apriltag_ros",
@@ -252,14 +356,12 @@ function M.encode_yaml(tags, name)
     local p, q = e.position, e.quaternion
     local w, x, y, z = M.flip(q.w, q.x, q.y, q.z)
     if w < 0 then w, x, y, z = -w, -x, -y, -z end
-    items[#items + 1] = format("          {id: %d, size: %s, x: %s, y: %s, z: %s, qw: %s, qx: %s,"
-      .. " qy: %s, qz: %s}", id, num(e.size), num(p.x), num(p.y), num(p.z), num(w), num(x),
-      num(y), num(z))
+    items[#items + 1] = format("          {id: %s, size: %s, x: %s, y: %s, z: %s, qw: %s, qx: %s,"
+      .. " qy: %s, qz: %s}", id_text(id), num(e.size), num(p.x), num(p.y), num(p.z), num(w),
+      num(x), num(y), num(z))
   end
   lines[#lines + 1] = concat(items, ",\n")
-  lines[#lines + 1] = "        ]"
-  lines[#lines + 1] = "    }"
-  lines[#lines + 1] = "  ]"
+  lines[#lines + 1] = "        ]\n    }\n  ]"
   return concat(lines, "\n") .. "\n"
 end
 
@@ -269,21 +371,20 @@ end
 -- @treturn string
 function M.encode_lua(tags, name)
   local lines = {
-    "-- a tagpose layout: X_body = R(quaternion) * X_tag + position, tag frames as in",
-    "-- tagpose's DESIGN.md (x right, y down, z into the tag; corners c1 = (-s/2, +s/2), ...)",
+    "-- a tagpose layout: X_body = R(quaternion) * X_tag + position, tag frames as tagpose's",
+    "-- (x right, y down, z into the tag; corners c1 = (-s/2, +s/2), c2 = (+s/2, +s/2), ...)",
     "return {" }
-  if name then lines[#lines + 1] = format("  name = %q,", name) end
+  if name then lines[#lines + 1] = "  name = " .. quote_lua(name) .. "," end
   lines[#lines + 1] = "  tags = {"
   for id, e in each(tags) do
     local p, q = e.position, e.quaternion
-    lines[#lines + 1] = format("    [%d] = { size = %s,", id, num(e.size))
+    lines[#lines + 1] = format("    [%s] = { size = %s,", id_text(id), num(e.size))
     lines[#lines + 1] = format("      position = { x = %s, y = %s, z = %s },", num(p.x), num(p.y),
       num(p.z))
     lines[#lines + 1] = format("      quaternion = { w = %s, x = %s, y = %s, z = %s } },",
       num(q.w), num(q.x), num(q.y), num(q.z))
   end
-  lines[#lines + 1] = "  },"
-  lines[#lines + 1] = "}"
+  lines[#lines + 1] = "  },\n}"
   return concat(lines, "\n") .. "\n"
 end
 
@@ -320,22 +421,42 @@ function M.read(path, options)
   return decode(text, path, bundle, size)
 end
 
---- Write a layout file, in the format its extension names.
+--- The text of a layout file, in the format the path's extension names: everything `write`
+-- checks before it touches a file.
+-- @tparam string path
+-- @tparam table tags a read layout
+-- @tparam[opt] string name the layout's name
+-- @treturn string
+-- @return nil, string when the extension is not a layout format's or the name cannot be
+--   written in it
+function M.encode(path, tags, name)
+  local ext = extension(path)
+  local encode = ENCODE[ext]
+  if not encode then
+    return nil, "layout: " .. path .. ": .lua, .yaml, .yml or .csv expected"
+  end
+  if name ~= nil and type(name) ~= "string" then
+    return nil, "layout: name: string expected, got " .. type(name)
+  end
+  if name and (ext == "yaml" or ext == "yml") and not is_utf8(name) then
+    return nil, "layout: name: not UTF-8 text (a YAML file is)"
+  end
+  return encode(tags, name)
+end
+
+--- Write a layout file, in the format its extension names, whole or not at all: the text is
+-- made first (`encode`), then written to a temporary file renamed onto `path`
+-- (`tagpose.formats.output`); on any failure the old file is left as it was.
 -- @tparam string path
 -- @tparam table tags a read layout
 -- @tparam[opt] string name the layout's name
 -- @treturn true
 -- @return nil, string
 function M.write(path, tags, name)
-  local encode = ENCODE[extension(path)]
-  if not encode then
-    return nil, "layout: " .. path .. ": .lua, .yaml, .yml or .csv expected"
-  end
-  local f, err = io.open(path, "w")
-  if not f then return nil, "layout: " .. tostring(err) end
-  local ok, werr = f:write(encode(tags, name))
-  local closed, cerr = f:close()
-  if not ok or not closed then return nil, "layout: " .. tostring(werr or cerr) end
+  local text, err = M.encode(path, tags, name)
+  if not text then return nil, err end
+  local ok, werr = output.write(path, text)
+  if not ok then return nil, "layout: " .. werr end
   return true
 end
 

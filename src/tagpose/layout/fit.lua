@@ -14,6 +14,12 @@
 -- body origin in the camera frame (`tagpose.uncertainty.from_normal` turns them into the 6×6
 -- covariance, ordered (x, y, z, rx, ry, rz) as ROS `PoseWithCovariance`).
 --
+-- Without priors the iterations run about the points' centroid (the body origin moved there
+-- while fitting, put back after): a body whose origin is far from its tags — a field map's
+-- corner, metres from the tags a camera sees — then has no curved valley between the
+-- rotation and the translation, and the fit converges to the minimum in a few steps instead
+-- of stopping short of it. The normal equations are those of the body origin, as before.
+--
 -- Rotations are flat, row-major 3×3 (body → camera); body points are flat `{x1, y1, z1, ...}`;
 -- pixels are flat `{u1, v1, u2, v2, ...}`.
 -- @module tagpose.layout.fit
@@ -28,6 +34,7 @@ local M = {}
 
 local K = {} -- the camera, packed for the kernels
 local body = { r = nil } -- the pose under way
+local centred = {} -- the points about their centroid
 
 local function constants(camera)
   return lsq.pack(camera, K)
@@ -59,7 +66,8 @@ end
 -- @tparam number ty
 -- @tparam number tz
 -- @tparam[opt] int max_iterations bound on linearisations (default `tagpose.layout.rigid`'s)
--- @tparam[opt] {number,...} prior the priors of `tagpose.layout.rigid.fit`
+-- @tparam[opt] {number,...} prior the priors of `tagpose.layout.rigid.fit` (with priors the
+--   iterations run about the body origin, whose translation the plane prior holds)
 -- @tparam[opt] {number,...} N when given, filled with the normal equations at the result
 -- @treturn number tx
 -- @treturn number ty
@@ -70,10 +78,28 @@ end
 -- @treturn number the sum of squared pixel residuals alone at the result
 function M.fit(camera, points, px, n, r, tx, ty, tz, max_iterations, prior, N)
   local C = constants(camera)
-  body.r, body.tx, body.ty, body.tz = r, tx, ty, tz
-  rigid.fit(C, points, px, n, body, max_iterations, prior)
+  local gx, gy, gz, fitted = 0, 0, 0, points
+  if not prior then
+    -- about the points' centroid g: X = R·(P - g) + (t + R·g)
+    for k = 1, 3 * n, 3 do
+      gx, gy, gz = gx + points[k], gy + points[k + 1], gz + points[k + 2]
+    end
+    gx, gy, gz = gx / n, gy / n, gz / n
+    fitted = centred
+    for k = 1, 3 * n, 3 do
+      fitted[k], fitted[k + 1], fitted[k + 2] = points[k] - gx, points[k + 1] - gy,
+        points[k + 2] - gz
+    end
+  end
+  body.r = r
+  body.tx = tx + r[1] * gx + r[2] * gy + r[3] * gz
+  body.ty = ty + r[4] * gx + r[5] * gy + r[6] * gz
+  body.tz = tz + r[7] * gx + r[8] * gy + r[9] * gz
+  rigid.fit(C, fitted, px, n, body, max_iterations, prior)
   local cost, k = body.cost, body.linearisations
-  tx, ty, tz = body.tx, body.ty, body.tz
+  tx = body.tx - (r[1] * gx + r[2] * gy + r[3] * gz)
+  ty = body.ty - (r[4] * gx + r[5] * gy + r[6] * gz)
+  tz = body.tz - (r[7] * gx + r[8] * gy + r[9] * gz)
   if not (cost < huge) then return tx, ty, tz, huge, k, huge end
   local sse
   if N then

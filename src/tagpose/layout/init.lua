@@ -4,9 +4,9 @@
 --     layout = {tags = {[id] = {size = s, position = {x =, y =, z =},
 --                               quaternion = {w =, x =, y =, z =}}}}
 --
--- places each tag's frame (tagpose's: origin at the tag's centre, x right, y down, z into the
--- tag) in the body frame: `X_body = R(quaternion)·X_tag + position`. Lengths are in the unit
--- of the sizes, angles in radians, errors in pixels.
+-- places each tag's frame (docs/conventions.md: origin at the tag's centre, x right, y down,
+-- z into the tag) in the body frame: `X_body = R(quaternion)·X_tag + position`. Lengths are
+-- in the unit of the sizes, angles in radians, errors in pixels.
 --
 -- * `solve` gives the body's pose from one frame's detections (`tagpose.layout.solve`);
 -- * `calibrate` gives the layout a recorded log says, from a nominal one
@@ -70,8 +70,9 @@ local SOLVE_OPTIONS = {
 --- The pose of a layout from one frame's detections: one joint least-squares fit over all the
 -- corners of its tags seen, through the lens.
 -- @tparam {table,...} detections array of `{id =, corners =}` (corners in detection order, as
---   for `tagpose.solve`); detections of ids not in the layout, malformed ones and ones whose
---   tag cannot be solved are skipped and listed
+--   for `tagpose.solve`); detections of ids not in the layout and malformed ones are skipped
+--   and listed, and so are tags that cannot be solved alone when no other tag can (otherwise
+--   their corners join the joint fit)
 -- @tparam table camera as for `tagpose.solve`
 -- @tparam table layout `{tags = {[id] = {size =, position =, quaternion =}}}`
 -- @tparam[opt] table options `sigma` (corner noise, px, for `covariance` and `confidence`;

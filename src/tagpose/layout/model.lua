@@ -4,7 +4,11 @@
 -- A layout is `{tags = {[id] = {size =, position = {x =, y =, z =}, quaternion = {w =, x =,
 -- y =, z =}}}}`: each tag's frame (that of DESIGN.md: origin at the tag's centre, x right,
 -- y down, z into the tag) placed in the body frame, `X_body = R(quaternion)·X_tag + position`.
--- Ids are whole numbers. A quaternion need not be unit (files round them): it is normalised.
+-- Ids are whole numbers of magnitude below 2^53 (every one a double holds exactly, and that
+-- every Lua prints and reads back as it was). A quaternion need not be unit (files round
+-- them): it is normalised, scaled first so that no square overflows or underflows
+-- (`{w = 1e200, x = 1e200}` is a half turn about x, not the identity); one of length 1e-6 or
+-- less is refused.
 --
 -- A read tag is `{id =, size =, half =, r = {9}, x =, y =, z =, points = {12}}`: `r` the flat,
 -- row-major tag → body rotation, `(x, y, z)` the tag's centre in the body, and `points` its
@@ -17,7 +21,7 @@ local args = require("tagpose.core.args")
 local rotation = require("tagpose.core.rotation")
 
 local is_finite, is_positive, describe = compat.is_finite, args.is_positive, args.describe
-local sqrt, floor = math.sqrt, math.floor
+local sqrt, floor, abs, max = math.sqrt, math.floor, math.abs, math.max
 
 local M = {}
 
@@ -45,11 +49,36 @@ function M.corners(r, x, y, z, half, out, first)
   return out
 end
 
---- True for a whole number usable as a tag id.
+--- Magnitude every tag id is below: 2^53.
+M.MAX_ID = 9007199254740992
+
+--- What a tag id is, for messages.
+M.ID = "a whole number of magnitude below 2^53"
+
+--- True for a whole number usable as a tag id: `|id| < 2^53`.
 -- @tparam any id
 -- @treturn boolean
 function M.is_id(id)
-  return is_finite(id) and id == floor(id)
+  return is_finite(id) and id == floor(id) and id < M.MAX_ID and id > -M.MAX_ID
+end
+
+--- A quaternion normalised without overflow or underflow: scaled by its largest component,
+-- then divided by its length.
+-- @tparam number w finite
+-- @tparam number x
+-- @tparam number y
+-- @tparam number z
+-- @treturn number|nil w, or nil when the quaternion's length is 1e-6 or less
+-- @treturn number x
+-- @treturn number y
+-- @treturn number z
+function M.unit_quaternion(w, x, y, z)
+  local m = max(abs(w), abs(x), abs(y), abs(z))
+  if not (m > 0) then return nil end
+  w, x, y, z = w / m, x / m, y / m, z / m
+  local n = sqrt(w * w + x * x + y * y + z * z) -- in [1, 2]
+  if not (m * n > 1e-6) then return nil end
+  return w / n, x / n, y / n, z / n
 end
 
 --- Read one tag entry of a layout.
@@ -75,8 +104,8 @@ function M.read_tag(entry, id, out)
     and is_finite(q.z)) then
     return nil, name .. ".quaternion: table of finite numbers {w =, x =, y =, z =} expected"
   end
-  local n = sqrt(q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z)
-  if not (n > 1e-6) then return nil, name .. ".quaternion: zero quaternion" end
+  local w, x, y, z = M.unit_quaternion(q.w, q.x, q.y, q.z)
+  if not w then return nil, name .. ".quaternion: zero quaternion (length 1e-6 or less)" end
   for key in pairs(entry) do
     if key ~= "size" and key ~= "position" and key ~= "quaternion" then
       return nil, name .. ": unknown key " .. describe(key)
@@ -84,7 +113,7 @@ function M.read_tag(entry, id, out)
   end
   out = out or {}
   out.id, out.size, out.half = id, size, 0.5 * size
-  out.r = rotation.from_quaternion(q.w, q.x, q.y, q.z, out.r)
+  out.r = rotation.from_quaternion(w, x, y, z, out.r)
   out.x, out.y, out.z = p.x, p.y, p.z
   out.points = M.corners(out.r, p.x, p.y, p.z, out.half, out.points or {})
   return out
@@ -103,7 +132,7 @@ function M.read(layout)
   local out, ids = {}, {}
   for id, entry in pairs(tags) do
     if not M.is_id(id) then
-      return nil, "layout.tags: key " .. describe(id) .. " is not a tag id (whole number)"
+      return nil, "layout.tags: key " .. describe(id) .. " is not a tag id (" .. M.ID .. ")"
     end
     local t, why = M.read_tag(entry, id)
     if not t then return nil, "layout." .. why end

@@ -2,20 +2,24 @@
 --
 -- 1. Every detection of a tag of the layout is solved alone (the refined single-tag solve): one
 --    or two poses (the planar ambiguity), each implying a body pose `R_b = R·Qᵀ`,
---    `t_b = t - R_b·p` for the tag placed at `(Q, p)` on the body. These are the starts.
+--    `t_b = t - R_b·p` for the tag placed at `(Q, p)` on the body. These are the starts. A tag
+--    that cannot be solved alone (seen nearly edge-on, its noisy corners not a convex
+--    quadrilateral) still joins the joint fit with its corners, when another tag gives starts.
 -- 2. One tag seen: its candidates are the body's minima (the same least-squares problem), so
 --    that a layout seen by one tag has the pose and uncertainty `tagpose.solve` gives the tag.
--- 3. Otherwise the starts are costed over all the corners of all the tags seen, and the joint
---    fit (`tagpose.layout.fit`: least squares over every corner through the lens) runs from the
---    best. Where the view is ambiguous — only tags in one plane — the other branch is fit too,
---    from the minimum mirrored about the line of sight to the tags' centroid (the planar
---    ambiguity of the whole plane, as IPPE has it for a square); when it reaches a distinct
---    minimum, the better-fitting minimum is the pose and the other its `alternative`.
---    Tags on planes at an angle leave no planar ambiguity: one pose.
+-- 3. Otherwise the joint fit (`tagpose.layout.fit`: least squares over every corner through the
+--    lens) runs from the start that fits all the corners best. With only tags in one plane it
+--    runs from every start (the `PLANE_STARTS` that fit best: two distant tags on one wall have
+--    several minima, and the best start alone often leads to a worse one) and from the best
+--    minimum mirrored about the line of sight to the tags' centroid (the planar ambiguity of
+--    the plane); the best minimum is the pose, the best other distinct one its `alternative`.
 --
 -- The uncertainty (`tagpose.uncertainty`), σ being `options.sigma`, else the fit's residuals
--- (`8n - 6` degrees of freedom for n tags, 2 for one) pooled with
--- `tagpose.uncertainty.DEFAULT_SIGMA` as a tag's is:
+-- (`8n - 6` degrees of freedom for n tags, 2 for one), topped up with
+-- `tagpose.uncertainty.DEFAULT_SIGMA` to the degrees of freedom they lack
+-- (`tagpose.uncertainty.noise`: two tags or more have enough and are judged by their own), the
+-- covariances then taking the factor κ that makes their 95 % ellipsoid hold 95 % with σ²
+-- estimated (`tagpose.uncertainty.ellipsoid`):
 --
 -- - one tag seen: the tag's own — its branch probability and covariance as `tagpose.solve`
 --   gives them, the covariance moved from the tag to the body origin;
@@ -31,6 +35,7 @@ local rotation = require("tagpose.core.rotation")
 local args = require("tagpose.core.args")
 local compat = require("tagpose.core.compat")
 local fit = require("tagpose.layout.fit")
+local minima = require("tagpose.layout.minima")
 local pipeline = require("tagpose.core.pipeline")
 local uncertainty = require("tagpose.uncertainty")
 
@@ -84,12 +89,10 @@ local function solve_tag(camera, size)
   return out
 end
 
--- σ² of the covariances: options.sigma², else the fit's residuals pooled with the default.
+-- σ² of the covariances and confidences, options.sigma² or the fit's residuals topped up with
+-- the default; and κ, the factor on the covariances (1 for a given σ).
 local function noise(sse, n, sigma)
-  if sigma then return sigma * sigma end
-  local d = uncertainty.DEFAULT_SIGMA
-  local dof = n > 1 and 8 * n - 6 or 2
-  return (uncertainty.DEFAULT_DOF * d * d + sse) / (uncertainty.DEFAULT_DOF + dof)
+  return uncertainty.noise(sse, sigma, n > 1 and 8 * n - 6 or 2)
 end
 
 -- Are the used tags all in one plane (normals and centres)?
@@ -169,14 +172,16 @@ local function get_start(k, r)
   return start_t[o + 1], start_t[o + 2], start_t[o + 3]
 end
 
--- The usable detections: those of tags of the layout with four finite corners, solved alone;
--- the others go into skipped with their reason. Fills points, pixels and the starts.
+-- The usable detections: those of tags of the layout with four finite corners, each solved
+-- alone for the starts; a tag that cannot be solved alone (seen nearly edge-on, its noisy
+-- corners not a convex quadrilateral) is a passenger: its corners join the joint fit, it gives
+-- no start. The others go into skipped with their reason. Fills points, pixels and the starts.
 local function gather(detections, camera, tags, skipped)
   local used, n, starts = {}, 0, 0
   local first_of = {}
   for i = 1, #detections do
     local d = detections[i]
-    local reason, tag, pose
+    local reason, tag, pose, passenger
     if type(d) ~= "table" then
       reason = "layout: detection is not a table {id =, corners =}"
     else
@@ -193,17 +198,18 @@ local function gather(detections, camera, tags, skipped)
           .. first_of[d.id] .. " is used)"
       else
         pose, reason = solve_tag(camera, tag.size)
+        passenger = not pose
       end
     end
-    if pose then
+    if pose or passenger then
       n = n + 1
       first_of[d.id] = i
-      used[n] = { index = i, id = d.id, tag = tag, pose = pose }
+      used[n] = { index = i, id = d.id, tag = tag, pose = pose, reason = reason }
       local o = 8 * (n - 1)
       for k = 1, 8 do pixels[o + k] = corners[k] end
       local p, q = tag.points, 12 * (n - 1)
       for k = 1, 12 do points[q + k] = p[k] end
-      for k = 1, #pose do
+      for k = 1, pose and #pose or 0 do
         starts = starts + 1
         add_start(starts, pose[k], tag)
       end
@@ -214,6 +220,8 @@ local function gather(detections, camera, tags, skipped)
   end
   return used, n, starts
 end
+
+local function by_index(a, b) return a.index < b.index end
 
 -- The public pose table of a minimum (its covariance set by `uncertain`).
 local function result(r, x, y, z, sse, k, npts)
@@ -227,27 +235,28 @@ local function result(r, x, y, z, sse, k, npts)
   }
 end
 
--- Covariances and confidences of the body (minimum a) and its alternative (minimum b, or nil):
--- see the module's header.
-local function uncertain(n, body, alt, a, b, s2)
+-- Covariances and confidences of the body (minimum a) and its alternative (minimum b, or nil),
+-- σ² s2 and the covariances' factor kappa: see the module's header.
+local function uncertain(n, body, alt, a, b, s2, kappa)
+  local c2 = kappa * s2
   if n == 1 then
     local ta, tb = a.tag, b and b.tag
     uncertainty.assess(ta, tb, s2)
-    body.covariance = uncertainty.move(uncertainty.covariance(ta, s2), a.x - ta.tx,
-      a.y - ta.ty, a.z - ta.tz)
+    body.covariance = uncertainty.move(uncertainty.from_normal(ta.normal, c2, kappa * ta.k,
+      ta.chord), a.x - ta.tx, a.y - ta.ty, a.z - ta.tz)
     body.confidence = ta.confidence
     if b then
-      alt.covariance = uncertainty.move(uncertainty.covariance(tb, s2), b.x - tb.tx,
-        b.y - tb.ty, b.z - tb.tz)
+      alt.covariance = uncertainty.move(uncertainty.from_normal(tb.normal, c2, kappa * tb.k,
+        tb.chord), b.x - tb.tx, b.y - tb.ty, b.z - tb.tz)
       alt.confidence = tb.confidence
     end
     return
   end
   local ld_a, ld_b
-  body.covariance, ld_a = uncertainty.from_normal(a.normal, s2, 0)
+  body.covariance, ld_a = uncertainty.from_normal(a.normal, c2, 0)
   body.confidence = 1
   if b then
-    alt.covariance, ld_b = uncertainty.from_normal(b.normal, s2, 0)
+    alt.covariance, ld_b = uncertainty.from_normal(b.normal, c2, 0)
     body.confidence = uncertainty.probability((b.sse - a.sse) / (2 * s2) + 0.5 * (ld_b - ld_a))
     alt.confidence = 1 - body.confidence
   end
@@ -298,46 +307,50 @@ end
 function M.solve(detections, camera, tags, o)
   local skipped = {}
   local used, n, starts = gather(detections, camera, tags, skipped)
-  if n == 0 then
+  if starts == 0 then
+    -- no tag solved alone: the passengers are skipped with their reasons
+    for i = 1, n do
+      local u = used[i]
+      skipped[#skipped + 1] = { index = u.index, id = u.id, reason = u.reason }
+    end
+    table.sort(skipped, by_index)
     local why = skipped[1] and skipped[1].reason
     return nil, "layout: no detection gives a pose of a tag of the layout"
       .. (why and " (detection " .. skipped[1].index .. ": " .. why .. ")" or "")
   end
   local npts = 4 * n
   if n == 1 then return one_tag(used, skipped, o) end
-  -- the best start over all the corners
-  local best, best_cost = 1, huge
-  for k = 1, starts do
-    local tx, ty, tz = get_start(k, r_a)
-    local c = fit.cost(camera, points, pixels, 1, npts, r_a, tx, ty, tz)
-    if c < best_cost then best, best_cost = k, c end
-  end
   local max_it = o.max_iterations or M.MAX_ITERATIONS
-  local ax, ay, az = get_start(best, r_a)
-  local cost_a, k_a, sse_a, cost_b, k_b, sse_b
-  ax, ay, az, cost_a, k_a, sse_a = fit.fit(camera, points, pixels, npts, r_a, ax, ay, az, max_it,
-    nil, normal_a)
-  -- the other branch, where the view is ambiguous: the minimum mirrored about the line of
-  -- sight to the tags' plane
-  local other, bx, by, bz = nil, nil, nil, nil
-  if coplanar(used, n) then
-    other = true
-    bx, by, bz = mirror(used, n, r_a, ax, ay, az, r_b)
+  local plane = coplanar(used, n)
+  local found = minima.find(camera, points, pixels, npts, starts, get_start, max_it, plane)
+  if plane and found[1] then
+    -- the other branch of the whole plane: the best minimum mirrored about the line of sight
+    local m = found[1]
+    local bx, by, bz = mirror(used, n, m.r, m.x, m.y, m.z, r_b)
+    minima.keep(found, camera, points, pixels, npts, r_b, bx, by, bz, max_it)
   end
+  if not found[1] then return nil, "layout: the joint fit put a corner behind the camera" end
+  -- the best minimum, and where the view is ambiguous (tags in one plane) the best other one,
+  -- each fit on from where it stopped, with its normal equations
+  local m = found[1]
+  for i = 1, 9 do r_a[i] = m.r[i] end
+  local ax, ay, az, cost_a, k_a, sse_a = fit.fit(camera, points, pixels, npts, r_a, m.x, m.y, m.z,
+    max_it, nil, normal_a)
+  if not (cost_a < huge and finite(r_a, ax, ay, az, sse_a)) then
+    return nil, "layout: the joint fit put a corner behind the camera"
+  end
+  k_a = k_a + m.k
+  local other = plane and found[2] or nil
+  local bx, by, bz, cost_b, k_b, sse_b
   if other then
-    bx, by, bz, cost_b, k_b, sse_b = fit.fit(camera, points, pixels, npts, r_b, bx, by, bz,
-      max_it, nil, normal_b)
+    for i = 1, 9 do r_b[i] = other.r[i] end
+    bx, by, bz, cost_b, k_b, sse_b = fit.fit(camera, points, pixels, npts, r_b, other.x, other.y,
+      other.z, max_it, nil, normal_b)
+    k_b = k_b + other.k
     if not (cost_b < huge and finite(r_b, bx, by, bz, sse_b))
       or rotation.angle(r_a, r_b) < M.TWIN_ANGLE then
       other = nil
     end
-  end
-  if not (cost_a < huge and finite(r_a, ax, ay, az, sse_a)) then
-    if not other then return nil, "layout: the joint fit put a corner behind the camera" end
-    -- only the other branch led to a pose
-    for i = 1, 9 do r_a[i] = r_b[i] end
-    for i = 1, 27 do normal_a[i] = normal_b[i] end
-    ax, ay, az, sse_a, k_a, other = bx, by, bz, sse_b, k_b, nil
   end
   local a = { r = r_a, x = ax, y = ay, z = az, sse = sse_a, k = k_a, normal = normal_a }
   local b = other and { r = r_b, x = bx, y = by, z = bz, sse = sse_b, k = k_b,

@@ -18,15 +18,24 @@
 --              for m, cm and mm, else in the unit
 -- --reference, --gauge, --robust, --max-iterations: tagpose.layout.calibrate's options
 --
--- Exit status: 0 calibrated, 1 a file could not be read or written or the log cannot
--- calibrate the layout, 2 a usage error.
+-- --out may not be an input (the log, the camera file, the nominal layout) under any name
+-- (`tagpose.tools.files`); it is checked and opened before the log is read, and written whole
+-- (`tagpose.formats.output`). Exit status: 0 calibrated, 1 a file could not be read or written
+-- (standard output included) or the log cannot calibrate the layout, 2 a usage error or an
+-- --out that is an input.
 -- @module tagpose.tools.calibrate
 
 local tagpose = require("tagpose")
+local compat = require("tagpose.core.compat")
 local calibration = require("tagpose.formats.calibration")
+local io_layout = require("tagpose.formats.layout")
+local output = require("tagpose.formats.output")
+local model = require("tagpose.layout.model")
 local log = require("tagpose.tools.log")
+local files = require("tagpose.tools.files")
 
 local deg, abs = math.deg, math.abs
+local id_text = io_layout.id_text
 
 local USAGE = "usage: tagpose-calibrate LOG.csv (--layout NOMINAL | --cube TAG_SIZE,BLOCK_SIZE)\n"
   .. "  [--camera CAMERA] [--out CALIBRATED.lua|.yaml|.csv] [--bundle NAME] [--unit NAME]\n"
@@ -41,6 +50,11 @@ end
 
 local function fail(msg)
   error(setmetatable({ status = 1, text = "calibrate: " .. msg .. "\n" }, EXIT), 0)
+end
+
+-- status 2 without the usage: an output that is one of the inputs
+local function refuse(msg)
+  error(setmetatable({ status = 2, text = "calibrate: " .. msg .. "\n" }, EXIT), 0)
 end
 
 local M = {}
@@ -59,7 +73,7 @@ local function parse(argv)
   end
   local function number(name, check, what)
     local v = value(name)
-    local x = tonumber(v)
+    local x = compat.decimal(v)
     if not (x and check(x)) then usage(name .. ": " .. what .. " expected, got " .. v) end
     return x
   end
@@ -72,8 +86,8 @@ local function parse(argv)
       opt.layout = value(a)
     elseif a == "--cube" then
       local v = value(a)
-      local s, b = v:match("^([^,]+),([^,]+)$")
-      s, b = tonumber(s), tonumber(b)
+      local s, b = v:match("^%s*([^,]-)%s*,%s*([^,]-)%s*$")
+      s, b = compat.decimal(s or ""), compat.decimal(b or "")
       if not (s and b and s > 0 and b > s and b < math.huge) then
         usage("--cube: TAG_SIZE,BLOCK_SIZE (0 < TAG_SIZE < BLOCK_SIZE) expected, got " .. v)
       end
@@ -87,7 +101,7 @@ local function parse(argv)
     elseif a == "--unit" then
       opt.unit = value(a)
     elseif a == "--reference" then
-      options.reference = number(a, function(x) return x == math.floor(x) end, "tag id")
+      options.reference = number(a, model.is_id, "tag id (" .. model.ID .. ")")
     elseif a == "--gauge" then
       options.gauge = value(a)
       if options.gauge ~= "planes" and options.gauge ~= "corners" then
@@ -126,19 +140,33 @@ local function towards(s)
   return text
 end
 
-local function frames_of(rows)
-  local frames, index = {}, {}
-  for _, r in ipairs(rows) do
-    local k = index[r.frame]
-    if not k then
-      k = #frames + 1
-      index[r.frame] = k
-      frames[k] = {}
+-- The corner log read into frames of detections `{id =, corners =}` (rows of one frame
+-- number, in the order the numbers first come), keeping nothing else of a row; the number of
+-- rows, and the malformed rows (the first 10 kept, with their count).
+local function read_frames(path)
+  local reader, err = log.corner_reader(path)
+  if not reader then fail(err:find(path, 1, true) and err or path .. ": " .. err) end
+  local frames, index, nrows, problems = {}, {}, 0, { n = 0 }
+  while true do
+    local det, line, reason = reader:read()
+    if det == nil then break end
+    if det then
+      nrows = nrows + 1
+      local k = index[det.frame]
+      if not k then
+        k = #frames + 1
+        index[det.frame] = k
+        frames[k] = {}
+      end
+      local f = frames[k]
+      f[#f + 1] = { id = det.tag, corners = det.corners }
+    else
+      problems.n = problems.n + 1
+      if #problems < 10 then problems[#problems + 1] = { line = line, reason = reason } end
     end
-    local f = frames[k]
-    f[#f + 1] = { id = r.tag, corners = r.corners }
   end
-  return frames
+  reader:close()
+  return frames, nrows, problems
 end
 
 -- The per-tag lines of a report.
@@ -148,30 +176,54 @@ local function tag_lines(say, report, scale, unit)
   table.sort(ids)
   for _, id in ipairs(ids) do
     local t = report.tags[id]
-    say("tag %d: %.2f %s towards %s, turned %.2f deg (in its plane %.2f %s, %+.2f deg; off it"
-      .. " %+.2f %s, tilted %.2f deg); %d detections%s, rms %.3f px", id, scale * t.distance,
-      unit, towards(t.shift), deg(t.angle), scale * t.in_plane, unit, deg(t.turn),
-      scale * t.normal, unit, deg(t.tilt), t.observations,
+    say("tag %s: %.2f %s towards %s, turned %.2f deg (in its plane %.2f %s, %+.2f deg; off it"
+      .. " %+.2f %s, tilted %.2f deg); %d detections%s, rms %.3f px", id_text(id),
+      scale * t.distance, unit, towards(t.shift), deg(t.angle), scale * t.in_plane, unit,
+      deg(t.turn), scale * t.normal, unit, deg(t.tilt), t.observations,
       t.outliers > 0 and (" (" .. t.outliers .. " outliers)") or "", t.rms)
   end
   for _, u in ipairs(report.unplaced) do
-    say("tag %d: not placed, %s (kept at its nominal pose)", u.id, u.reason)
+    say("tag %s: not placed, %s (kept at its nominal pose)", id_text(u.id), u.reason)
   end
 end
 
-local function run(argv)
+-- The camera file's path: --camera, or camera.lua beside the log.
+local function camera_path_of(opt)
+  if opt.camera then return opt.camera end
+  local path = (opt.log:match("^(.*)/[^/]*$") or ".") .. "/camera.lua"
+  local probe = io.open(path, "r")
+  if not probe then usage("no camera file " .. path .. "; give --camera") end
+  probe:close()
+  return path
+end
+
+-- The calibrated layout's file, opened before anything is read (its name refused when it is
+-- one of the inputs, its format and its directory checked): nil without --out.
+local function open_output(opt, camera_path, open)
+  if not opt.out then return nil end
+  local clash = files.clash({ { name = "the corner log", path = opt.log },
+    { name = "the camera file", path = camera_path },
+    { name = "the nominal layout", path = opt.layout } },
+    { { name = "the calibrated layout (--out)", path = opt.out } })
+  if clash then refuse(clash) end
+  local _, why = io_layout.encode(opt.out, { ids = {} })
+  if why then usage("--out: " .. why:gsub("^layout: ", "")) end
+  local out, err = output.open(opt.out)
+  if not out then fail(err) end
+  open[#open + 1] = out
+  return out
+end
+
+local function run(argv, open)
   local opt, options = parse(argv)
+  local camera_path = camera_path_of(opt)
+  local out_file = open_output(opt, camera_path, open)
   local out = io.stdout
   local function say(fmt, ...)
-    out:write(fmt:format(...), "\n")
+    local ok, err = out:write(fmt:format(...), "\n")
+    if not ok then fail("standard output: " .. tostring(err)) end
   end
   -- the camera and the nominal layout
-  local camera_path = opt.camera or ((opt.log:match("^(.*)/[^/]*$") or ".") .. "/camera.lua")
-  if not opt.camera then
-    local probe = io.open(camera_path, "r")
-    if not probe then usage("no camera file " .. camera_path .. "; give --camera") end
-    probe:close()
-  end
   local camera, cerr = calibration.read(camera_path)
   if not camera then fail(cerr) end
   local nominal, lerr
@@ -182,19 +234,15 @@ local function run(argv)
     if not nominal then fail(lerr) end
   end
   -- the log
-  local rows, problems = log.read_corners(opt.log)
-  if not rows then
-    fail(problems:find(opt.log, 1, true) and problems or opt.log .. ": " .. problems)
-  end
-  local frames = frames_of(rows)
+  local frames, nrows, problems = read_frames(opt.log)
   local ok, layout, report = pcall(tagpose.layout.calibrate, frames, camera, nominal, options)
   if not ok then fail(tostring(layout)) end
   if not layout then fail(report) end
   local unit = opt.unit or "m"
   local scale, shown = MM[unit] or 1, MM[unit] and "mm" or unit
-  say("calibrate %s: %d rows in %d frames%s", opt.log, #rows, #frames,
-    #problems > 0 and (", " .. #problems .. " malformed rows skipped") or "")
-  for k = 1, math.min(#problems, 10) do
+  say("calibrate %s: %d rows in %d frames%s", opt.log, nrows, #frames,
+    problems.n > 0 and (", " .. problems.n .. " malformed rows skipped") or "")
+  for k = 1, #problems do
     say("  line %d: %s", problems[k].line, problems[k].reason)
   end
   local f = report.frames
@@ -205,13 +253,16 @@ local function run(argv)
   local d = report.detections
   say("residual rms %.3f px (nominal layout %.3f px), corner noise %.3f px; %d outliers of %d"
     .. " detections", report.rms, report.rms_start, report.sigma, d.outliers, d.used)
-  say("gauge: tag %d held fixed, the result moved onto the nominal layout by %.3f %s (rms over"
-    .. " the corners); %d iterations in %d stages%s", report.reference, report.reference and
-    scale * report.alignment or 0, shown, report.iterations, report.stages,
+  say("gauge: tag %s held fixed, the result moved onto the nominal layout by %.3f %s (rms over"
+    .. " the corners); %d iterations in %d stages%s", id_text(report.reference),
+    report.reference and scale * report.alignment or 0, shown, report.iterations, report.stages,
     report.converged and "" or " (stopped at --max-iterations)")
-  if opt.out then
-    local wok, werr = tagpose.layout.write(opt.out, layout)
-    if not wok then fail(werr) end
+  if out_file then
+    local text, why = io_layout.encode(opt.out, assert(model.read(layout)), layout.name)
+    if not text then fail(why) end
+    out_file:write(text)
+    local committed, werr = out_file:commit()
+    if not committed then fail(werr) end
     say("wrote %s", opt.out)
   end
   return 0
@@ -219,17 +270,24 @@ end
 
 --- Run the command on its arguments (`arg` of the script).
 -- @tparam {string,...} argv the command-line arguments
--- @treturn int the exit status: 0 calibrated, 1 a file could not be read or written or the log
---   cannot calibrate the layout, 2 a usage error
+-- @treturn int the exit status: 0 calibrated, 1 a file could not be read or written (standard
+--   output included) or the log cannot calibrate the layout, 2 a usage error (an --out that is
+--   one of the inputs included)
 function M.main(argv)
-  local ok, status = pcall(run, argv)
-  if ok then return status end
-  if getmetatable(status) == EXIT then
-    local stream = status.status == 0 and io.stdout or io.stderr
-    stream:write(status.text)
+  local open = {}
+  local ok, status = pcall(run, argv, open)
+  for i = #open, 1, -1 do open[i]:abort() end
+  if ok then status = setmetatable({ status = status, text = "" }, EXIT) end
+  if getmetatable(status) ~= EXIT then error(status, 0) end
+  if status.status ~= 0 then
+    io.stderr:write(status.text)
     return status.status
   end
-  error(status, 0)
+  -- what was written to standard output (the summary, --help) reached it, or status 1
+  local flushed, err = io.stdout:flush()
+  if flushed then return 0 end
+  io.stderr:write("calibrate: standard output: " .. tostring(err) .. "\n")
+  return 1
 end
 
 M.towards = towards

@@ -1,13 +1,14 @@
 --- CSV tables with a header line, read row by row in chunks (one row in memory at a time).
 --
--- The CSV is read as RFC 4180 writes it and as spreadsheets save it: fields separated by
--- commas, a field in double quotes may hold commas, line ends and `""` for a quote; spaces
--- and tabs around a field are trimmed; lines end in LF, CRLF or CR alone; a UTF-8 byte-order
--- mark before the header is skipped. Blank lines and lines whose first character (after
--- spaces) is `#` are skipped. The header names every column once. A row is read exactly or
--- reported with its line and the reason: more or fewer fields than the header, a quote inside
--- an unquoted field or text after a closing quote, a quoted field that never closes, a line
--- (or quoted field) longer than the reader's `max_record` bytes.
+-- The CSV is read as RFC 4180 writes it and as spreadsheets save it, one record a line: fields
+-- separated by commas, a field in double quotes may hold commas and `""` for a quote (not a
+-- line end: no log has one in a field, so a stray quote costs its own line, never the rest of
+-- the file); spaces and tabs around a field are trimmed; lines end in LF, CRLF or CR alone; a
+-- UTF-8 byte-order mark before the header is skipped. Blank lines and lines whose first
+-- character (after spaces) is `#` are skipped. The header names every column once. A row is
+-- read exactly or reported with its line and the reason: more or fewer fields than the
+-- header, a quote inside an unquoted field or text after a closing quote, a quoted field not
+-- closed on its line, a line longer than the reader's `max_record` bytes.
 --
 -- This is the reader underneath `tagpose.tools.log` (whose `csv_reader` documents the
 -- reader's fields and methods); it does file I/O, so it is for the tools, not the solve path.
@@ -135,32 +136,20 @@ local function split_plain(s, limit)
   return fields, count
 end
 
--- the quoted field whose quote is at column q of line s, across lines if it holds line ends:
--- its text (nil when longer than max_record), the line where it closes and the column of the
--- closing quote; false when it never closes
-local function quoted_field(lines, s, q, max_record)
-  local parts, size, pos = {}, 0, q + 1
+-- the quoted field whose quote is at column q of line s: its text and the column of the
+-- closing quote; false when it does not close on its line (no field of a log spans lines: a
+-- stray quote costs its own line, not the rest of the file)
+local function quoted_field(s, q)
+  local parts, pos = {}, q + 1
   while true do
     local i = find(s, '"', pos, true)
-    if i and byte(s, i + 1) == QUOTE then
-      if size <= max_record then parts[#parts + 1] = sub(s, pos, i) end
-      size = size + i - pos + 1
+    if not i then return false end
+    if byte(s, i + 1) == QUOTE then
+      parts[#parts + 1] = sub(s, pos, i)
       pos = i + 2
-    elseif i then
-      if size <= max_record then parts[#parts + 1] = sub(s, pos, i - 1) end
-      size = size + i - pos
-      if size > max_record then return nil, s, i end
-      return concat(parts), s, i
     else
-      if size <= max_record then parts[#parts + 1] = sub(s, pos) .. "\n" end
-      size = size + #s - pos + 2
-      s = lines:next()
-      if s == nil then return false end
-      if s == false then
-        s = ""
-        size = max_record + 1
-      end
-      pos = 1
+      parts[#parts + 1] = sub(s, pos, i - 1)
+      return concat(parts), i
     end
   end
 end
@@ -179,8 +168,8 @@ local function unquoted_field(s, p, q, count)
   return sub(s, q, (last == SPACE or last == TAB) and rtrim_end(s, q, e - 1) or e - 1), e
 end
 
--- a record whose first line s (line start) has quotes: as Csv:record
-local function split_quoted(lines, s, start, limit, max_record)
+-- a record whose line s (line start) has quotes: as Csv:record
+local function split_quoted(s, start, limit)
   local fields, count, p, bad = {}, 0, 1, nil
   while true do
     local q, b = p, byte(s, p)
@@ -189,15 +178,12 @@ local function split_quoted(lines, s, start, limit, max_record)
       b = q and byte(s, q)
     end
     if b == QUOTE then
-      local text, close
-      text, s, close = quoted_field(lines, s, q, max_record)
-      if text == false then return false, start, "quoted field " .. (count + 1) .. " not closed" end
-      count = count + 1
-      if text == nil then
-        bad = bad or ("quoted field " .. count .. " longer than " .. max_record .. " bytes")
-      elseif count <= limit then
-        fields[count] = text
+      local text, close = quoted_field(s, q)
+      if text == false then
+        return false, start, "quoted field " .. (count + 1) .. " not closed on its line"
       end
+      count = count + 1
+      if count <= limit then fields[count] = text end
       local r = find(s, "[^ \t]", close + 1)
       if r == nil then break end
       if byte(s, r) ~= COMMA then
@@ -243,7 +229,7 @@ function Csv:record(limit)
     local fields, count = split_plain(s, limit)
     return fields, start, count
   end
-  return split_quoted(lines, s, start, limit, lines.max_record)
+  return split_quoted(s, start, limit)
 end
 
 -- the reason a header is refused (it names a column twice, leaves one unnamed, lacks a
@@ -278,7 +264,7 @@ end
 --- Open a CSV table with a header line, to read it row by row.
 -- @tparam string|file source a path or an open file (left open by `close`)
 -- @tparam[opt] {string,...} required column names that must be in the header
--- @tparam int max_record the longest line (or quoted field) read, in bytes
+-- @tparam int max_record the longest line read, in bytes
 -- @tparam int max_columns the most columns the header may name
 -- @treturn table the reader: `header`, `column` (name → index), `header_line`, `width`;
 --   `read()` → `fields, line`, `false, line, reason` or `nil` at the end; `close()`

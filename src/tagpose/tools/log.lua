@@ -6,20 +6,22 @@
 -- * Camera file: see `tagpose.calibration` (Lua camera files are read as data, ROS and OpenCV
 --   YAML as they are written).
 --
--- The CSV is read as RFC 4180 writes it and as spreadsheets save it: fields separated by
--- commas, a field in double quotes may hold commas, line ends and `""` for a quote; spaces
--- and tabs around a field are trimmed; lines end in LF, CRLF or CR alone; a UTF-8 byte-order
--- mark before the header is skipped. Blank lines and lines whose first character (after
--- spaces) is `#` are skipped. The header names every column once (a repeated or empty name is
+-- The CSV is read as RFC 4180 writes it and as spreadsheets save it, one row a line: fields
+-- separated by commas, a field in double quotes may hold commas and `""` for a quote but not
+-- a line end (no log has one in a field: a stray quote costs its own line); spaces and tabs
+-- around a field are trimmed; lines end in LF, CRLF or CR alone; a UTF-8 byte-order mark
+-- before the header is skipped. Blank lines and lines whose first character (after spaces)
+-- is `#` are skipped. The header names every column once (a repeated or empty name is
 -- refused). Every other row is either read exactly or reported with its line number and the
 -- reason, the same way on every VM: a row with more or fewer fields than the header, a quote
--- inside an unquoted field or text after a closing quote, a quoted field that never closes, a
--- line longer than `MAX_RECORD` bytes.
+-- inside an unquoted field or text after a closing quote, a quoted field not closed on its
+-- line, a line longer than `MAX_RECORD` bytes.
 --
 -- Numbers are decimal numerals (`compat.decimal`: `12`, `-0.5`, `6.5e+02`), the same on every
 -- VM; `nan`, `inf`, `-inf` and `infinity` (any case, as C and Python print them) are read as
 -- the values they name, and a numeral out of range as ±infinity, so that they are reported, not
--- guessed: a `frame` or `tag` that is not a finite number makes the row malformed; a corner
+-- guessed: a `frame` that is not a finite number, or a `tag` that is not a tag id (a whole
+-- number of magnitude below 2^53, as everywhere in tagpose), makes the row malformed; a corner
 -- that is not finite is left to the solver to refuse. Anything else (hexadecimal, `1,5`,
 -- text) is not a number.
 --
@@ -31,6 +33,8 @@
 local compat = require("tagpose.core.compat")
 local calibration = require("tagpose.formats.calibration")
 local csv_table = require("tagpose.tools.csv")
+local output = require("tagpose.formats.output")
+local model = require("tagpose.layout.model")
 
 local decimal = compat.decimal
 local concat = table.concat
@@ -43,7 +47,7 @@ M.CORNER_COLUMNS = { "frame", "tag", "u1", "v1", "u2", "v2", "u3", "v3", "u4", "
 --- Header of a pose log.
 M.POSE_COLUMNS = { "frame", "tag", "x", "y", "z", "qw", "qx", "qy", "qz", "error", "iterations",
   "confidence", "sx", "sy", "sz", "srx", "sry", "srz" }
---- Longest line (or quoted field across lines) read, in bytes; a longer one is reported.
+--- Longest line read, in bytes; a longer one is reported.
 M.MAX_RECORD = 1048576
 --- Most columns a header may name.
 M.MAX_COLUMNS = 10000
@@ -107,6 +111,9 @@ local function key_field(fields, i, name, n)
   if type(n) ~= "number" then n = nil end
   if n == nil then return nil, "column " .. name .. " is not a number" end
   if not is_finite(n) then return nil, "column " .. name .. " is not finite (" .. v .. ")" end
+  if name == "tag" and not model.is_id(n) then
+    return nil, "column tag is not a tag id (" .. v .. " is not " .. model.ID .. ")"
+  end
   return n
 end
 
@@ -336,20 +343,24 @@ end
 local Writer = {}
 Writer.__index = Writer
 
---- Open a pose log for writing row by row: the header now, a line per `write`.
--- @tparam string|file target a path (created or truncated) or an open file (left open)
+--- Open a pose log for writing row by row: the header now, a line per `write`. A path is
+-- written whole or not at all (`tagpose.formats.output`: a temporary file beside it, renamed
+-- onto it by `close`), so the old file stays as it was until the log is complete.
+-- @tparam string|file target a path (replaced by `close`) or an open file (left open, flushed
+--   by `close`)
 -- @treturn table the writer, with `write(frame, tag, pose)` (a `nil` pose writes a failed
---   row) and `close()` → the number of rows written, or `nil, string` when writing failed
--- @return nil, string when the file cannot be created
+--   row), `close()` → the number of rows written, or `nil, string` when writing failed (the
+--   path is then left as it was), and `abort()` (the path left as it was)
+-- @return nil, string when the file cannot be written
 function M.pose_writer(target)
-  local f, owned = target, false
+  local f, out = target, nil
   if type(target) == "string" then
     local err
-    f, err = io.open(target, "w")
-    if not f then return nil, "log: " .. tostring(err) end
-    owned = true
+    out, err = output.open(target)
+    if not out then return nil, "log: " .. err end
+    f = out
   end
-  local self = setmetatable({ f = f, owned = owned, n = 0, pending = {}, err = nil }, Writer)
+  local self = setmetatable({ f = f, out = out, n = 0, pending = {}, err = nil }, Writer)
   self.pending[1] = concat(M.POSE_COLUMNS, ",")
   return self
 end
@@ -376,16 +387,29 @@ end
 function Writer:close()
   self:flush()
   local err = self.err
-  if self.owned then
-    local closed, cerr = self.f:close()
-    if not closed and not err then err = tostring(cerr) end
+  if self.out then
+    if err then
+      self.out:abort()
+    else
+      local ok, cerr = self.out:commit()
+      if not ok then err = cerr end
+    end
+  elseif not err then
+    local ok, ferr = self.f:flush()
+    if not ok then err = tostring(ferr) end
   end
   if err then return nil, "log: " .. err end
   return self.n
 end
 
+function Writer:abort()
+  self.pending = {}
+  if self.out then self.out:abort() end
+end
+
 --- Write a whole pose log: the header, then one line per entry, in the entries' order.
--- @tparam string|file target a path (created or truncated) or an open file (left open)
+-- @tparam string|file target a path (written whole or not at all, as `pose_writer`) or an
+--   open file (left open)
 -- @tparam {table,...} entries `{frame =, tag =, pose =}` each; a `nil` pose is a row that
 --   failed and keeps only its frame and tag
 -- @treturn int the number of rows written

@@ -62,7 +62,7 @@ local Tracker = {}
 Tracker.__index = Tracker
 M.Tracker = Tracker
 
-local OPTIONS = { "method", "max_gap", "max_tracks", "smooth", "sigma" }
+local OPTIONS = { "method", "max_gap", "max_tracks", "smooth", "sigma", "order" }
 
 local function raise(n, fname, message)
   args.raise(n, fname, message, 3)
@@ -126,6 +126,11 @@ local function read_options(self, options)
   if sigma ~= nil and not args.is_positive(sigma) then
     raise(3, "new", "options.sigma: positive number expected, got " .. describe(sigma))
   end
+  local order = options.order
+  if order ~= nil and order ~= "apriltag" and order ~= "opencv" then
+    raise(3, "new", "options.order: 'apriltag' or 'opencv' expected, got " .. describe(order))
+  end
+  self.opencv = order == "opencv"
   self.seed, self.max_gap, self.max_tracks = method == "seed", max_gap, max_tracks
   self.sigma2 = sigma and sigma * sigma or nil
   self.recording = options.smooth == true
@@ -146,6 +151,8 @@ end
 --   - `sigma`: the corner noise in pixels, for the poses' `covariance` (default: each track's
 --     running estimate from its residuals; a new track's first pose, the single-frame default
 --     of `tagpose.solve`);
+--   - `order`: the corners' order, `"apriltag"` (default) or `"opencv"` (as for
+--     `tagpose.solve`);
 --   - `smooth`: true to record what `tracker:smooth()` needs (four numbers per detection).
 -- @treturn table the tracker
 -- @raise `bad argument #n to 'new' (...)` for a camera, size or option it cannot use
@@ -222,7 +229,7 @@ local function read_entry(self, det, i)
     px = {}
     self.pxs[i] = px
   end
-  local ok, why = args.read_corners(det.corners, px)
+  local ok, why = args.read_corners(det.corners, px, self.opencv)
   if not ok then return "tracker: entry " .. i .. ": corners: " .. why end
   -- (no track for corners that are not all finite: a detector's glitch, not a tag)
   if ok ~= true then return "tracker: entry " .. i .. ": corner " .. ok .. " is not finite" end

@@ -5,8 +5,10 @@
 -- A candidate is a record `{r =, tx =, ty =, tz =, sse =, normal =}` (`tagpose.core.pipeline`'s):
 -- `r` the flat row-major rotation tag → camera, `t` the tag centre in the camera frame (tag-size
 -- units), `sse` the sum of squared pixel residuals of the four corners, `normal` its normal
--- equations (H in the first 21 numbers, `tagpose.core.lsq`'s layout; pixels, no σ), and optionally
--- `qw, qx, qy, qz`, the rotation's unit quaternion. `sigma2` is σ² in px².
+-- equations (H in the first 21 numbers, `tagpose.core.lsq`'s layout; pixels, no σ), and
+-- optionally `qw, qx, qy, qz`, the rotation's unit quaternion. `assess` writes its uncertainty
+-- into the same record: `confidence`, `k` (its chord factor) and `chord` (to the other minimum).
+-- `sigma2` is σ² in px².
 --
 -- Covariances are nested 6×6 tables `c[i][j]`, in the order (x, y, z, rx, ry, rz): position in
 -- tag-size units and a small rotation vector `r` in the camera frame, `R_true = exp([r]×) R`
@@ -20,8 +22,8 @@
 -- `SPREAD`.
 --
 -- The branch probability (`assess`) is cheap: the factors of each H and one quadratic form
--- each. A covariance costs a full inverse and its table: `tagpose.solve` makes it when it is
--- first read (`resolve`).
+-- each. A covariance costs a full inverse and its table. This module is loaded on demand: a
+-- pose's `confidence` and `covariance` are made when first read (`tagpose.core.result`).
 -- @module tagpose.uncertainty
 
 local compat = require("tagpose.core.compat")
@@ -29,7 +31,8 @@ local rotation = require("tagpose.core.rotation")
 local matrix = require("tagpose.uncertainty.matrix")
 local model = require("tagpose.uncertainty.model")
 
-local sqrt, log, exp, max, huge = math.sqrt, math.log, math.exp, math.max, math.huge
+local sqrt, log, exp, max, floor, huge = math.sqrt, math.log, math.exp, math.max, math.floor,
+  math.huge
 local atan2 = compat.atan2
 local to_quaternion = rotation.to_quaternion
 local factor, variance, inverse, fill = matrix.factor, matrix.variance, matrix.inverse,
@@ -38,10 +41,13 @@ local factor, variance, inverse, fill = matrix.factor, matrix.variance, matrix.i
 local M = {}
 
 --- σ (px) assumed when none is given: a corner detector on a robot camera (the real AprilTag
--- detector's corner error on clean renders is ~0.12 px; 0.3-0.5 px on a robot).
+-- detector's corner error on clean renders is ~0.12 px; the real BuilderBot logs' residuals
+-- give 0.15-0.28 px, `bench/corner_noise.lua`). Where a frame has too few residuals to tell,
+-- the covariance is right near this σ and too wide below it (docs/uncertainty.md).
 M.DEFAULT_SIGMA = 0.5
---- Weight of `DEFAULT_SIGMA` in degrees of freedom, against the 2 of one frame's residuals:
--- `σ² = (DEFAULT_DOF · DEFAULT_SIGMA² + sse) / (DEFAULT_DOF + 2)`.
+--- Weight of `DEFAULT_SIGMA` in degrees of freedom: σ² rests on `DEFAULT_DOF + 2` degrees of
+-- freedom at least, the default filling in what the residuals' ν lack (`noise`); one tag's
+-- frame (ν = 2) gives `σ² = (DEFAULT_DOF · DEFAULT_SIGMA² + sse) / (DEFAULT_DOF + 2)`.
 M.DEFAULT_DOF = 8
 --- Weight of one frame's branch log-odds L (a fractional likelihood; 1: the evidence as is).
 -- Fitted by maximum likelihood on 133 000 synthetic ambiguous rows it is 0.95 ± 0.05.
@@ -144,15 +150,41 @@ end
 
 local analyse = M.analyse
 
---- σ² to use: `sigma²` when given, else `DEFAULT_SIGMA²` pooled with one frame's residuals.
--- @tparam number sse the best candidate's sum of squared pixel residuals (px², 2 degrees of
---   freedom)
+-- The factor on a covariance whose σ² was estimated from ν residual degrees of freedom (topped
+-- up by the default, `noise`) that makes its 6-dof 95 % ellipsoid hold 95 % of the errors: for
+-- ν = 2, 4, ..., 40, from `bench/ellipsoid_table.lua` (for DEFAULT_DOF = 8). From ν = 10 on it
+-- is Student's: 6 F(6, ν; 0.95) / χ²(6; 0.95).
+local ELLIPSOID = { 1.0623, 1.1385, 1.2345, 1.3604, 1.5330, 1.4277, 1.3570, 1.3063, 1.2681,
+  1.2384, 1.2146, 1.1952, 1.1789, 1.1652, 1.1534, 1.1432, 1.1342, 1.1263, 1.1193, 1.1131 }
+local ELLIPSOID_DOF = 2 * #ELLIPSOID
+
+--- The factor on `σ² H⁻¹` when σ² was estimated from ν degrees of freedom (`noise`), for the
+-- covariance's 95 % ellipsoid to be the pose's 95 % region (1 for a known σ; beyond the table
+-- κ - 1 falls as 1/ν, to within 0.2 %).
+-- @tparam number dof ν, the residuals' degrees of freedom (>= 0)
+-- @treturn number κ (>= 1)
+function M.ellipsoid(dof)
+  if dof >= ELLIPSOID_DOF then return 1 + (ELLIPSOID[#ELLIPSOID] - 1) * ELLIPSOID_DOF / dof end
+  local i = floor(0.5 * dof)
+  local lo = i >= 1 and ELLIPSOID[i] or 1
+  return lo + (ELLIPSOID[i + 1] - lo) * (0.5 * dof - i)
+end
+
+--- σ² to use: `sigma²` when given, else the residuals' estimate topped up with `DEFAULT_SIGMA`
+-- to `DEFAULT_DOF + 2` degrees of freedom, `((DEFAULT_DOF + 2 - ν)₊ DEFAULT_SIGMA² + sse) /
+-- max(DEFAULT_DOF + 2, ν)`: the default stands in for the degrees of freedom a frame lacks
+-- (one tag has 2), and a fit with enough (a block of two faces, 10) is judged by its own.
+-- @tparam number sse the sum of squared pixel residuals (px²) of the best fit
 -- @tparam[opt] number sigma σ in pixels (`options.sigma`)
+-- @tparam[opt] number dof ν, the residuals' degrees of freedom (default 2: one tag)
 -- @treturn number σ² (px²)
-function M.noise(sse, sigma)
-  if sigma then return sigma * sigma end
-  local d = M.DEFAULT_SIGMA
-  return (M.DEFAULT_DOF * d * d + sse) / (M.DEFAULT_DOF + 2)
+-- @treturn number κ, the factor on the covariance for its 95 % ellipsoid (`ellipsoid`; 1 for
+--   a given σ): the confidence takes σ², the covariance κ σ²
+function M.noise(sse, sigma, dof)
+  if sigma then return sigma * sigma, 1 end
+  dof = dof or 2
+  local top, d = M.DEFAULT_DOF + 2, M.DEFAULT_SIGMA
+  return (max(top - dof, 0) * d * d + sse) / max(top, dof), M.ellipsoid(dof)
 end
 
 --- The per-frame log-likelihood ratio between the branches of a and b: ln of the posterior mass

@@ -2,7 +2,8 @@
 --
 -- The ways out of the command are raised as `EXIT` tables `{status =, text =}` (the text for
 -- standard error) and caught by `tagpose.tools.replay.main`: `usage` (status 2, with the
--- usage), `fail` (status 1: a file cannot be read or written), and `--help` (status 0).
+-- usage), `refuse` (status 2: an output that is an input), `fail` (status 1: a file cannot be
+-- read or written), and `--help` (status 0).
 -- @module tagpose.tools.replay.command
 
 local compat = require("tagpose.core.compat")
@@ -30,6 +31,13 @@ local EXIT = M.EXIT
 function M.usage(msg)
   error(setmetatable({ status = 2, text = (msg and "replay: " .. msg .. "\n" or "") .. USAGE },
     EXIT), 0)
+end
+
+--- Leave with status 2 without the usage: a command line that names one file twice (an
+-- output that is one of the inputs).
+-- @tparam string msg
+function M.refuse(msg)
+  error(setmetatable({ status = 2, text = "replay: " .. msg .. "\n" }, EXIT), 0)
 end
 
 --- Leave with status 1: a file cannot be read or written.

@@ -52,6 +52,7 @@ function M.open(path, recorder)
   local label = command.basename(path):gsub("%.csv$", "")
   local self = setmetatable({ path = path, reader = reader, source = recorder and
     recorder:source(label), recorder = recorder, tracker = plot.tracker(),
+    track_count = frames.track_count(),
     problems = stats.tally(), dt = stats.histogram(), dr = stats.histogram(), matched = 0,
     frame = nil, rows = {}, last = nil, out_of_order = 0, first_out_of_order = nil,
     unmatched_frame = 0, lookahead = nil, done = false }, Compare)
@@ -82,7 +83,9 @@ function Compare:draw(frame, rows)
     local list = by_tag[tag]
     local points = {}
     for k, e in ipairs(list) do points[k] = position_point(e.pose) end
+    local known = self.tracker.tracks[tag]
     local slots = self.tracker:assign(frame, tag, points)
+    frames.bound_tracks(self.tracker, self.track_count, frame, known and #known or 0, tag)
     for k, e in ipairs(list) do
       self.recorder:add(self.source, tag, slots[k] or 1, frame, e.pose)
     end

@@ -15,8 +15,16 @@
 --       repeated = {rows =, max =, tags =, ntags =, first =},  -- rows sharing (frame, tag)
 --       order = {rows =, first =},  -- rows after a later frame
 --       untracked = n,  -- detections past MAX_TRACKS tracks of an id
+--       forgotten = n,  -- live tracks dropped past MAX_LIVE (the least recently seen)
 --       ...                         -- and the per-frame state of the tracks
 --     }
+--
+-- Memory is bounded whatever the log (its length, its ids): the rows of one part of a frame,
+-- at most twice `MAX_LIVE` tracks (a tracker keeps an id's tracks until the id comes back, so
+-- the ids whose tracks have ended are swept out as new ones come, and the live ones down to
+-- `MAX_LIVE`: `bound_tracks`), at most
+-- `MAX_IDS` ids in the summary and in a frame's count of repeated keys, and the figure's
+-- bounded series. A track keeps its last pose only when tracking (`--track`), for the prior.
 -- @module tagpose.tools.replay.frames
 
 local tagpose = require("tagpose")
@@ -36,10 +44,67 @@ M.MAX_GROUP = 1000
 --- Most tracks of one tag id (further detections of the id in a frame are solved without a
 -- prior and not drawn).
 M.MAX_TRACKS = 16
---- Most distinct tag ids the summary keeps (a log may carry a new id on every row).
+--- Most distinct tag ids the summary keeps (a log may carry a new id on every row), and the
+-- most whose repeated keys are counted in one frame.
 M.MAX_IDS = 10000
+--- Most live tracks kept (over all ids; the least recently seen are dropped past it).
+M.MAX_LIVE = 1000
 
 local MAX_GROUP, MAX_IDS = M.MAX_GROUP, M.MAX_IDS
+
+--- A count of the tracks a `tagpose.tools.plot.tracker` may hold, for `bound_tracks`.
+-- @treturn table
+function M.track_count()
+  return { added = 0, forgotten = 0 }
+end
+
+local function by_age(a, b)
+  if a.frame ~= b.frame then return a.frame < b.frame end
+  if type(a.id) ~= type(b.id) then return type(a.id) == "number" end
+  return a.id < b.id
+end
+
+--- Keep a tracker's tracks bounded: after `tracker:assign` gave id `id` tracks, count the new
+-- ones; past `MAX_LIVE` new tracks since the last sweep, drop every id whose tracks have all
+-- ended (none seen within `tracker.keep` frames of `frame`: the tracker would drop them when
+-- the id came back), then the least recently seen ids (older frames first, then smaller ids)
+-- until at most `MAX_LIVE` tracks are left. Each sweep costs the tracks it looks at, once per
+-- `MAX_LIVE` new tracks.
+-- @tparam table tracker a `tagpose.tools.plot.tracker`
+-- @tparam table count a `track_count()` (its `forgotten` counts the live tracks dropped)
+-- @tparam number frame the frame just assigned
+-- @tparam int before the number of tracks of the id before `assign`
+-- @param id the id just assigned
+function M.bound_tracks(tracker, count, frame, before, id)
+  local list = tracker.tracks[id]
+  local now = list and #list or 0
+  local limit = M.MAX_LIVE
+  if now > before then count.added = count.added + now - before end
+  if count.added <= limit then return end
+  local ids, total = {}, 0
+  for key, l in pairs(tracker.tracks) do
+    local last = -math.huge
+    for _, t in ipairs(l) do
+      if t.frame and t.frame > last then last = t.frame end
+    end
+    if frame - last > tracker.keep then
+      tracker.tracks[key] = nil
+    else
+      ids[#ids + 1] = { id = key, frame = last, n = #l }
+      total = total + #l
+    end
+  end
+  if total > limit then
+    table.sort(ids, by_age)
+    for _, e in ipairs(ids) do
+      if total <= limit then break end
+      tracker.tracks[e.id] = nil
+      total = total - e.n
+      count.forgotten = count.forgotten + e.n
+    end
+  end
+  count.added = 0
+end
 
 --- A replay's record (see the module's header), nothing read yet.
 -- @tparam table opt the options of `tagpose.tools.replay.command.parse`
@@ -57,14 +122,23 @@ function M.new(opt, camera, sizes, out)
     repeated = { rows = 0, max = 1, tags = {}, ntags = 0, first = nil },
     order = { rows = 0, first = nil }, untracked = 0,
     tracker = plot.tracker({ keep = opt.max_gap or 1, max_tracks = M.MAX_TRACKS }),
-    options = { method = opt.method }, frame_counts = {}, counted_frame = nil,
-    previous_frame = nil }
+    track_count = M.track_count(), options = { method = opt.method }, frame_counts = {},
+    frame_ids = 0, uncounted = 0, counted_frame = nil, previous_frame = nil }
 end
 
--- count the rows of a tag that share their frame with another of the tag
+-- count the rows of a tag that share their frame with another of the tag (among the first
+-- MAX_IDS ids of the frame: the rows of further ids are counted as uncounted)
 local function count_repeated(run, tag, list)
   local repeated = run.repeated
-  local before = run.frame_counts[tag] or 0
+  local before = run.frame_counts[tag]
+  if before == nil then
+    if run.frame_ids >= MAX_IDS then
+      run.uncounted = run.uncounted + #list
+      return
+    end
+    run.frame_ids = run.frame_ids + 1
+    before = 0
+  end
   local now = before + #list
   run.frame_counts[tag] = now
   if now > 1 then
@@ -103,7 +177,10 @@ local function solve_rows(run, frame, tag, list)
     local diagonal = sqrt((c[1][1] - c[3][1]) ^ 2 + (c[1][2] - c[3][2]) ^ 2)
     points[k] = { u, v, gate = 2 * diagonal + 10 }
   end
-  local slots, tracks = run.tracker:assign(frame, tag, points)
+  local tracker = run.tracker
+  local known = tracker.tracks[tag]
+  local slots, tracks = tracker:assign(frame, tag, points)
+  M.bound_tracks(tracker, run.track_count, frame, known and #known or 0, tag)
   for k, row in ipairs(list) do
     local track = tracks[k]
     local prior = nil
@@ -113,7 +190,7 @@ local function solve_rows(run, frame, tag, list)
     end
     run.options.prior = prior
     local pose, reason = solve_row(run, row, tag)
-    if pose and track then track.pose, track.pose_frame = pose, frame end
+    if pose and track and max_gap then track.pose, track.pose_frame = pose, frame end
     row.pose, row.reason, row.slot = pose, reason or (not pose and "no pose") or nil, slots[k]
     if not slots[k] and is_finite(points[k][1]) and is_finite(points[k][2]) then
       run.untracked = run.untracked + 1
@@ -167,7 +244,9 @@ function M.process(run, group)
     run.order.first = run.order.first or group[1].line
   end
   run.previous_frame = frame
-  if run.counted_frame ~= frame then run.frame_counts, run.counted_frame = {}, frame end
+  if run.counted_frame ~= frame then
+    run.frame_counts, run.frame_ids, run.counted_frame = {}, 0, frame
+  end
   local by_tag, tags = plot.by_tag(group)
   for _, tag in ipairs(tags) do
     local list = by_tag[tag]

@@ -30,9 +30,13 @@
 -- (frame, tag) key (lab tags are often all id 0) are kept apart as tracks, by image position
 -- (each detection joins the track of its id whose last centre is nearest, within twice that
 -- detection's diagonal plus 10 px); a track's pose is the prior of its own next detection only.
--- A malformed row is reported with its line number and skipped. Exit status: 0 when the log
--- was replayed (whatever its rows gave), 1 when a file cannot be read or written, 2 on a usage
--- error.
+-- A malformed row is reported with its line number and skipped.
+--
+-- The outputs (--out, --svg) may not be inputs (the log, the camera file, a compared log) or
+-- each other, under any name (`tagpose.tools.files`: the file system's device and inode); they
+-- are opened before anything is read and written whole (`tagpose.formats.output`). Exit
+-- status: 0 when the log was replayed (whatever its rows gave), 1 when a file cannot be read
+-- or written (standard output included), 2 on a usage error or an output that is an input.
 --
 -- Its parts: `tagpose.tools.replay.command` (the command line and its exits),
 -- `tagpose.tools.replay.frames` (rows solved, tracked, written and counted a frame at a time),
@@ -48,21 +52,41 @@ local command = require("tagpose.tools.replay.command")
 local frames = require("tagpose.tools.replay.frames")
 local compare = require("tagpose.tools.replay.compare")
 local summary = require("tagpose.tools.replay.summary")
+local files = require("tagpose.tools.files")
+local output = require("tagpose.formats.output")
 
 local usage, fail = command.usage, command.fail
 
 local M = {}
 
--- the camera file (--camera, or camera.lua beside the log), what it says, the tag sizes and
--- the length unit
-local function load_camera(opt)
-  local camera_path = opt.camera
-  if not camera_path then
-    camera_path = (opt.log:match("^(.*)/[^/]*$") or ".") .. "/camera.lua"
-    if not command.exists(camera_path) then
-      usage("no camera file: " .. camera_path .. " does not exist; give --camera FILE")
-    end
+-- the camera file's path: --camera, or camera.lua beside the log
+local function camera_path_of(opt)
+  if opt.camera then return opt.camera end
+  local path = (opt.log:match("^(.*)/[^/]*$") or ".") .. "/camera.lua"
+  if not command.exists(path) then
+    usage("no camera file: " .. path .. " does not exist; give --camera FILE")
   end
+  return path
+end
+
+-- refuse an output that is one of the inputs (or another output), before reading anything
+local function refuse_clashes(opt, camera_path)
+  local inputs = { { name = "the corner log", path = opt.log },
+    { name = "the camera file", path = camera_path } }
+  for _, path in ipairs(opt.compare) do
+    inputs[#inputs + 1] = { name = "the compared log", path = path }
+  end
+  local outputs = {}
+  if opt.out and opt.out ~= "-" then
+    outputs[#outputs + 1] = { name = "the pose log (--out)", path = opt.out }
+  end
+  if opt.svg then outputs[#outputs + 1] = { name = "the plot (--svg)", path = opt.svg } end
+  local clash = files.clash(inputs, outputs)
+  if clash then command.refuse(clash) end
+end
+
+-- the camera file, what it says, the tag sizes and the length unit
+local function load_camera(opt, camera_path)
   local camera, info = calibration.read(camera_path)
   if not camera then fail(info) end
   local problem = tagpose.camera.check(camera)
@@ -76,16 +100,30 @@ local function load_camera(opt)
   return camera, { path = camera_path, info = info, unit = unit }, sizes
 end
 
--- the corner log, the pose log, the figure's recorder, the logs to compare with
-local function open_files(opt)
-  local reader, rerr = log.corner_reader(opt.log)
-  if not reader then fail(rerr:find(opt.log, 1, true) and rerr or opt.log .. ": " .. rerr) end
+-- the outputs, opened before anything is read (a file that cannot be written is found before
+-- the replay): the pose log's writer and the plot's file, kept in `open` for `main` to abort
+-- (an output committed is not touched by its abort)
+local function open_outputs(opt, open)
   local out = { compares = {} }
   if opt.out then
     local werr
     out.writer, werr = log.pose_writer(opt.out == "-" and io.stdout or opt.out)
     if not out.writer then fail(werr) end
+    open[#open + 1] = out.writer
   end
+  if opt.svg then
+    local serr
+    out.svg, serr = output.open(opt.svg)
+    if not out.svg then fail(serr) end
+    open[#open + 1] = out.svg
+  end
+  return out
+end
+
+-- the corner log, the figure's recorder, the logs to compare with
+local function open_inputs(opt, out)
+  local reader, rerr = log.corner_reader(opt.log)
+  if not reader then fail(rerr:find(opt.log, 1, true) and rerr or opt.log .. ": " .. rerr) end
   if opt.svg then
     out.recorder = plot.recorder({ rotation = opt.rpy and "rpy" or "quaternion" })
     out.main_source = out.recorder:source("tagpose " .. (opt.method or "refined")
@@ -96,29 +134,35 @@ local function open_files(opt)
     if not c then fail(cerr) end
     out.compares[#out.compares + 1] = c
   end
-  return reader, out
+  return reader
 end
 
-local function run(arg)
+local function run(arg, open)
   local opt = command.parse(arg)
+  local camera_path = camera_path_of(opt)
+  refuse_clashes(opt, camera_path)
+  local files_out = open_outputs(opt, open)
 
-  -- where the summary goes: stdout, unless the pose log does
+  -- where the summary goes: stdout, unless the pose log does; a failed write ends the command
   local out = opt.out == "-" and io.stderr or io.stdout
   local function say(fmt, ...)
-    out:write(select("#", ...) > 0 and fmt:format(...) or fmt, "\n")
+    local ok, err = out:write(select("#", ...) > 0 and fmt:format(...) or fmt, "\n")
+    if not ok then fail((out == io.stdout and "standard output: " or "") .. tostring(err)) end
   end
 
-  local camera, source, sizes = load_camera(opt)
-  local reader, files = open_files(opt)
-  local replay = frames.new(opt, camera, sizes, files)
+  local camera, source, sizes = load_camera(opt, camera_path)
+  local reader = open_inputs(opt, files_out)
+  local replay = frames.new(opt, camera, sizes, files_out)
   frames.read(replay, reader)
-  for _, c in ipairs(files.compares) do c:finish() end
+  for _, c in ipairs(files_out.compares) do c:finish() end
 
   -- the pose log first, so that a summary never claims a file that was not written
   local written = nil
-  if files.writer then
-    local n, werr = files.writer:close()
-    if not n then fail(werr) end
+  if files_out.writer then
+    local n, werr = files_out.writer:close()
+    if not n then
+      fail(opt.out == "-" and "standard output: " .. werr:gsub("^log: ", "") or werr)
+    end
     written = n
   end
 
@@ -130,22 +174,29 @@ local function run(arg)
     say("wrote %s (%d rows)", opt.out == "-" and "the pose log to standard output" or opt.out,
       written)
   end
-  if files.recorder then summary.figure(say, replay, source.unit) end
+  if files_out.recorder then summary.figure(say, replay, source.unit, files_out.svg) end
   return 0
 end
 
 --- Run the command on its arguments (`arg` of the script).
 -- @tparam {string,...} argv the command-line arguments
--- @treturn int the exit status: 0 replayed, 1 a file could not be read or written, 2 a usage
---   error
+-- @treturn int the exit status: 0 replayed, 1 a file could not be read or written (standard
+--   output included), 2 a usage error (an output that is one of the inputs included)
 function M.main(argv)
-  local ok, status = pcall(run, argv)
-  if ok then return status end
-  if getmetatable(status) == command.EXIT then
+  local open = {}
+  local ok, status = pcall(run, argv, open)
+  for i = #open, 1, -1 do open[i]:abort() end
+  if ok then status = setmetatable({ status = status, text = "" }, command.EXIT) end
+  if getmetatable(status) ~= command.EXIT then error(status, 0) end
+  if status.status ~= 0 then
     io.stderr:write(status.text)
     return status.status
   end
-  error(status, 0)
+  -- what was written to standard output (the summary, --help) reached it, or status 1
+  local flushed, err = io.stdout:flush()
+  if flushed then return 0 end
+  io.stderr:write("replay: standard output: " .. tostring(err) .. "\n")
+  return 1
 end
 
 return M

@@ -23,8 +23,11 @@ function M.number(v)
   return ("%.6g"):format(v)
 end
 
--- quantiles in bounded memory: counts in bins of 1/1000 of a decade (0.23 %)
+-- quantiles in bounded memory: counts in bins of 1/1000 of a decade (0.23 %) from 1e-12 to
+-- 1e12, whole decades beyond (at most 24 000 fine bins and 600 coarse ones, whatever the
+-- values: a hostile log cannot grow them)
 local BINS = 1000
+local FINE = 12 * BINS
 local LOG10 = mlog(10)
 
 --- An empty histogram of values >= 0.
@@ -43,11 +46,14 @@ function M.add(h, v)
     h.zero = h.zero + 1
     return
   end
-  local k = floor(mlog(v) / LOG10 * BINS)
+  local e = mlog(v) / LOG10
+  local k = floor(e * BINS)
+  if k >= FINE or k < -FINE then k = floor(e) * BINS end
   h.bins[k] = (h.bins[k] or 0) + 1
 end
 
---- The value of nearest rank `ceil(q n)` (the lower median for q = 0.5), to its bin's centre.
+--- The value of nearest rank `ceil(q n)` (the lower median for q = 0.5), to its bin's centre
+-- (0.23 % wide from 1e-12 to 1e12, a decade beyond).
 -- @tparam table h
 -- @tparam number q
 -- @treturn number|nil nil when nothing was counted
@@ -61,7 +67,10 @@ function M.quantile(h, q)
   local acc = h.zero
   for _, k in ipairs(keys) do
     acc = acc + h.bins[k]
-    if acc >= rank then return 10 ^ ((k + 0.5) / BINS) end
+    if acc >= rank then
+      if k >= FINE or k < -FINE then return 10 ^ (k / BINS + 0.5) end
+      return 10 ^ ((k + 0.5) / BINS)
+    end
   end
   return nil
 end

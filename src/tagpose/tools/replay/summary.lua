@@ -117,6 +117,14 @@ function M.rows(say, run)
       .. " a frame; first at line %d): kept apart as tracks by image position", repeated.rows,
       nids == 1 and "" or "s", concat(names, ", "), repeated.max, repeated.first)
   end
+  if run.uncounted > 0 then
+    say("uncounted  %d rows of ids past the first %d of their frame: not checked for repeated"
+      .. " keys", run.uncounted, frames.MAX_IDS)
+  end
+  if run.track_count.forgotten > 0 then
+    say("forgotten  %d live tracks dropped past %d (the least recently seen): their tags' next"
+      .. " detections start new tracks", run.track_count.forgotten, frames.MAX_LIVE)
+  end
   if run.untracked > 0 then
     say("untracked  %d detections beyond %d tracks of one id in a frame: solved without a"
       .. " prior, not drawn", run.untracked, frames.MAX_TRACKS)
@@ -183,16 +191,15 @@ end
 -- @tparam function say
 -- @tparam table run
 -- @tparam string unit the length unit
+-- @tparam table svg the plot's file, a `tagpose.formats.output` (committed here)
 -- @raise an `EXIT` of `tagpose.tools.replay.command` when the file cannot be written
-function M.figure(say, run, unit)
+function M.figure(say, run, unit, svg)
   local opt, recorder = run.opt, run.recorder
   local title = opt.title or ("replay of " .. command.short_name(opt.log))
-  local svg, shown = plot.draw(recorder, { title = title, length_unit = unit })
-  local f, ferr = io.open(opt.svg, "w")
-  if not f then command.fail(tostring(ferr)) end
-  local ok, werr = f:write(svg)
-  f:close()
-  if not ok then command.fail(opt.svg .. ": " .. tostring(werr)) end
+  local text, shown = plot.draw(recorder, { title = title, length_unit = unit })
+  svg:write(text)
+  local ok, werr = svg:commit()
+  if not ok then command.fail(werr) end
   local ntracks = shown.tracks
   local nsources = #run.compares + 1
   say("wrote %s (%d panels, %d series: %s%d tag%s x %d log%s)", opt.svg, shown.panels,

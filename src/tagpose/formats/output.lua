@@ -1,0 +1,191 @@
+--- Files written whole or not at all: every file tagpose writes goes to a temporary file
+-- beside its target and is renamed onto it once everything was written and closed, so that a
+-- failure at any point (a full disk, an error in the data, a killed process) leaves the old
+-- file as it was.
+--
+-- * The temporary file is in the target's directory (a rename within one file system
+--   replaces the target at once), named `.NAME.tagpose-XXXXXXXX.tmp` after the target, with a
+--   suffix that is tried until no file of that name exists; it is removed on every failure.
+-- * `open` finds what can be found before any work: a target that is a directory or a file
+--   that may not be written (permissions are respected, not worked around by the rename), a
+--   directory that does not exist or may not be written.
+-- * A rename replaces the target's directory entry: a symbolic link named as the target is
+--   replaced by the file, not followed, and the new file has the permissions of a new file.
+-- * Where a rename cannot replace an existing file (Windows), the old file is first renamed
+--   aside and put back if the new one cannot take its place.
+--
+-- Errors are `nil, "PATH: reason"` (the target's path: the caller adds its module's name).
+-- This module does file I/O, so it is for writing files, never for the solve path.
+-- @module tagpose.formats.output
+
+local M = {}
+
+--- The errno of a file that does not exist (the same on Linux, the BSDs, macOS and Windows).
+local ENOENT = 2
+
+local counter = 0
+
+-- A suffix for a temporary name: the process's table addresses, clock and a counter (two
+-- processes or two writers rarely draw the same; a name that exists is never used).
+local function suffix()
+  counter = counter + 1
+  local address = tostring({}):match("0x(%x+)") or tostring({}):match("(%x+)$") or ""
+  local mix = (tonumber(address:sub(-7), 16) or 0) + counter * 7919
+    + math.floor(os.clock() * 1e6) + os.time()
+  return ("%08x"):format(mix % 4294967296)
+end
+
+-- True when a file exists at path (an error other than "no such file" counts as existing).
+local function exists(path)
+  local f, _, code = io.open(path, "rb")
+  if f then
+    f:close()
+    return true
+  end
+  return code ~= ENOENT
+end
+
+-- The message of an io error about `name`, told about `path` instead.
+local function reason(err, name, path)
+  err = tostring(err)
+  if name and err:sub(1, #name + 2) == name .. ": " then err = err:sub(#name + 3) end
+  return path .. ": " .. err
+end
+
+--- Whether a file may be written at path: nil when it may, else why not (`"PATH: reason"`).
+-- An existing file must be a file that opens for writing (it is not changed); a new one needs
+-- its directory.
+-- @tparam string path
+-- @treturn nil|string
+function M.check(path)
+  if type(path) ~= "string" or path == "" then return "output: a file name expected" end
+  local f, err, code = io.open(path, "rb")
+  if f then
+    local ok, rerr = f:read(1)
+    f:close()
+    if ok == nil and rerr then return reason(rerr, nil, path) end
+    local w, werr = io.open(path, "r+b") -- opens for writing without truncating
+    if not w then return reason(werr, path, path) end
+    w:close()
+  elseif code ~= ENOENT then
+    return reason(err, path, path)
+  end
+  return nil
+end
+
+local Output = {}
+Output.__index = Output
+
+--- Open a file to be written whole: its temporary file is created now.
+-- @tparam string path the target
+-- @treturn table the output: `write(...)` (strings, as `file:write`), `commit()`, `abort()`,
+--   `path`, `temporary`
+-- @return nil, string `"PATH: reason"` when it cannot be written
+function M.open(path)
+  local why = M.check(path)
+  if why then return nil, why end
+  local dir, name = path:match("^(.*[/\\])([^/\\]*)$")
+  if not dir then dir, name = "", path end
+  local tmp, f, err
+  for _ = 1, 100 do
+    tmp = dir .. "." .. name .. ".tagpose-" .. suffix() .. ".tmp"
+    if not exists(tmp) then
+      f, err = io.open(tmp, "wb")
+      if not f then return nil, reason(err, tmp, path) end
+      break
+    end
+  end
+  if not f then return nil, path .. ": no free name for a temporary file beside it" end
+  return setmetatable({ path = path, temporary = tmp, f = f, err = nil }, Output)
+end
+
+--- Write strings to the file; the first error is kept (`commit` reports it).
+-- @param ... strings or numbers
+-- @treturn boolean|nil true, or nil and the error
+-- @treturn string the error
+function Output:write(...)
+  if self.err then return nil, self.err end
+  if not self.f then
+    self.err = self.path .. ": already closed"
+    return nil, self.err
+  end
+  local ok, err = self.f:write(...)
+  if not ok then
+    self.err = reason(err, self.temporary, self.path)
+    return nil, self.err
+  end
+  return true
+end
+
+--- Close and remove the temporary file; the target is left as it was.
+function Output:abort()
+  if self.f then
+    self.f:close()
+    self.f = nil
+  end
+  if self.temporary then
+    os.remove(self.temporary)
+    self.temporary = nil
+  end
+end
+
+-- Rename tmp onto path; where the system refuses to replace a file, move the old one aside
+-- first and put it back on failure.
+local function replace(tmp, path)
+  local ok, err = os.rename(tmp, path)
+  if ok then return true end
+  if not exists(path) then return nil, err end
+  local aside
+  for _ = 1, 100 do
+    aside = path .. ".tagpose-" .. suffix() .. ".old"
+    if not exists(aside) then break end
+  end
+  local moved = os.rename(path, aside)
+  if not moved then return nil, err end
+  ok, err = os.rename(tmp, path)
+  if not ok then
+    os.rename(aside, path)
+    return nil, err
+  end
+  os.remove(aside)
+  return true
+end
+
+--- Close the file and put it in place of the target.
+-- @treturn true
+-- @return nil, string `"PATH: reason"` when anything failed (a write, the close, the rename):
+--   the temporary file is removed and the target left as it was
+function Output:commit()
+  if not self.temporary then return nil, self.err or (self.path .. ": already closed") end
+  local err = self.err
+  if not err then
+    local ok, cerr = self.f:close()
+    self.f = nil
+    if not ok then err = reason(cerr, self.temporary, self.path) end
+  end
+  if not err then
+    local ok, rerr = replace(self.temporary, self.path)
+    if ok then
+      self.temporary = nil
+      return true
+    end
+    err = reason(rerr, self.temporary, self.path)
+  end
+  self.err = err
+  self:abort()
+  return nil, err
+end
+
+--- Write a whole file at once (`open`, `write`, `commit`).
+-- @tparam string path
+-- @tparam string text
+-- @treturn true
+-- @return nil, string `"PATH: reason"`
+function M.write(path, text)
+  local out, err = M.open(path)
+  if not out then return nil, err end
+  out:write(text)
+  return out:commit()
+end
+
+return M
