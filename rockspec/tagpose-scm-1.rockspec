@@ -59,6 +59,7 @@ build = {
     ["tagpose.formats.calibration.storage"] = "src/tagpose/formats/calibration/storage.lua",
     ["tagpose.formats.json"] = "src/tagpose/formats/json.lua",
     ["tagpose.formats.layout"] = "src/tagpose/formats/layout.lua",
+    ["tagpose.formats.layout_encode"] = "src/tagpose/formats/layout_encode.lua",
     ["tagpose.formats.luadata"] = "src/tagpose/formats/luadata/init.lua",
     ["tagpose.formats.luadata.lexer"] = "src/tagpose/formats/luadata/lexer.lua",
     ["tagpose.formats.output"] = "src/tagpose/formats/output.lua",

@@ -2,7 +2,7 @@
 -- poses back into entries.
 --
 -- A layout is `{tags = {[id] = {size =, position = {x =, y =, z =}, quaternion = {w =, x =,
--- y =, z =}}}}`: each tag's frame (that of DESIGN.md: origin at the tag's centre, x right,
+-- y =, z =}}}}`: each tag's frame (docs/conventions.md: origin at the tag's centre, x right,
 -- y down, z into the tag) placed in the body frame, `X_body = R(quaternion)·X_tag + position`.
 -- Ids are whole numbers of magnitude below 2^53 (every one a double holds exactly, and that
 -- every Lua prints and reads back as it was). A quaternion need not be unit (files round

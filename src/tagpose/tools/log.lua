@@ -1,4 +1,4 @@
---- Corner logs, pose logs and camera files: the data formats of DESIGN.md, read row by row.
+--- Corner logs, pose logs and camera files (docs/conventions.md), read row by row.
 --
 -- * Corner log: CSV with a header naming at least `frame,tag,u1,v1,u2,v2,u3,v3,u4,v4`
 --   (further columns are kept by name and otherwise ignored), one row per detection.
