@@ -1,6 +1,9 @@
+local tagpose = require("tagpose")
 local cube = require("tagpose.layout.cube")
 local geometry = require("support.geometry")
 local assertions = require("support.assertions")
+local layouts = require("support.layouts")
+local FACES = require("support.faces").FACES
 
 local rad, abs = math.rad, math.abs
 
@@ -53,21 +56,44 @@ describe("tagpose.layout.cube", function()
     end)
   end)
 
-  describe("FACES", function()
-    it("carry a tag whose z points into the block, upright on the side faces", function()
-      local names = 0
-      for name, f in pairs(cube.FACES) do
-        names = names + 1
-        local r, n = f.rotation, f.normal
-        assert.equal(1, det(r))
-        assert.same({ -n[1], -n[2], -n[3] }, { r[3], r[6], r[9] })
-        if n[3] == 0 then assert.same({ 0, 0, -1 }, { r[2], r[5], r[8] }) end
-        assert.equal(1, cube.nearest(geometry.mul(r, { r[1], r[4], r[7], r[2], r[5], r[8],
-          r[3], r[6], r[9] })))
-        assert.equal(name, cube.face_of(r))
+  describe("face names", function()
+    it("name each face by its outward normal, and a tag's face by its frame", function()
+      assert.same({ "+x", "-x", "+y", "-y", "+z", "-z" }, cube.FACE_NAMES)
+      for _, name in ipairs(cube.FACE_NAMES) do
+        local n = cube.NORMALS[name]
+        local axis = ({ x = 1, y = 2, z = 3 })[name:sub(2)]
+        local sign = name:sub(1, 1) == "+" and 1 or -1
+        for i = 1, 3 do assert.equal(i == axis and sign or 0, n[i]) end
+        assert.equal(name, cube.face_name(n[1], n[2], n[3]))
       end
-      assert.equal(6, names)
-      assert.same({ 1, 0, 0, 0, -1, 0, 0, 0, -1 }, cube.FACES["+z"].rotation)
+      -- a tag's z axis points into the block: its face's outward normal is -G·e_z
+      local count = {}
+      for _, g in ipairs(cube.ROTATIONS) do
+        local name = cube.face_of(g)
+        local n = cube.NORMALS[name]
+        assert.same({ -n[1], -n[2], -n[3] }, { g[3], g[6], g[9] })
+        count[name] = (count[name] or 0) + 1
+      end
+      -- four turns on each face
+      for _, name in ipairs(cube.FACE_NAMES) do assert.equal(4, count[name]) end
+    end)
+  end)
+
+  describe("of_nested()", function()
+    it("finds a nested rotation of the cube, and nothing else", function()
+      for k, g in ipairs(cube.ROTATIONS) do
+        assert.equal(k, cube.of_nested({ { g[1], g[2], g[3] }, { g[4], g[5], g[6] },
+          { g[7], g[8], g[9] } }))
+      end
+      local off = geometry.axis_angle(1, 2, 3, 1e-3)
+      local nested = { { off[1], off[2], off[3] }, { off[4], off[5], off[6] },
+        { off[7], off[8], off[9] } }
+      assert.is_nil(cube.of_nested(nested))
+      assert.equal(1, cube.of_nested(nested, 2e-3))
+      assert.is_nil(cube.of_nested({ { 2, 0, 0 }, { 0, 2, 0 }, { 0, 0, 2 } }, 0.1))
+      assert.is_nil(cube.of_nested({ { 1, 0, 0 }, { 0, 1, 0 }, { 0, 0, 0 / 0 } }))
+      assert.is_nil(cube.of_nested({ { 1, 0, 0 }, { 0, 1, 0 } }))
+      assert.is_nil(cube.of_nested("+x"))
     end)
   end)
 
@@ -145,5 +171,52 @@ describe("tagpose.layout.cube", function()
       end
       assert.is_table(assertions)
     end)
+  end)
+end)
+
+describe("tagpose.layout.cube()", function()
+  local function raised(f) return assertions.raised(f, "cube_spec.lua") end
+
+  it("puts the lab's tags on the faces: centred, z into the block, upright on the sides",
+    function()
+      local layout = tagpose.layout.cube(0.024, 0.055)
+      -- ids 0 to 5 on +x, -x, +y, -y, +z, -z
+      for i, f in ipairs(FACES) do
+        local e = layout.tags[i - 1]
+        assert.equal(0.024, e.size)
+        assert.rotation_near(f.r, layouts.matrix(e.quaternion), 1e-12)
+        assert.vector_near({ 0.0275 * f.n[1], 0.0275 * f.n[2], 0.0275 * f.n[3] }, e.position, 0)
+      end
+    end)
+
+  it("takes faces by name or turned, and sizes by id", function()
+    local turned = geometry.mul(FACES[5].r, geometry.axis_angle(0, 0, 1, math.pi / 2))
+    local nested = { { turned[1], turned[2], turned[3] }, { turned[4], turned[5], turned[6] },
+      { turned[7], turned[8], turned[9] } }
+    local layout = tagpose.layout.cube({ [7] = 0.03, default = 0.02 }, 0.05,
+      { [7] = "-y", [8] = nested })
+    assert.equal(0.03, layout.tags[7].size)
+    assert.equal(0.02, layout.tags[8].size)
+    assert.rotation_near(FACES[4].r, layouts.matrix(layout.tags[7].quaternion), 1e-12)
+    assert.rotation_near(turned, layouts.matrix(layout.tags[8].quaternion), 1e-12)
+    assert.vector_near({ 0, 0, 0.025 }, layout.tags[8].position, 0)
+    assert.is_nil(layout.tags[0])
+  end)
+
+  it("refuses bad sizes and faces", function()
+    for _, case in ipairs({
+      { function() tagpose.layout.cube(-1, 0.05) end,
+        "bad argument #1 to 'cube' (positive number expected for tag_size, got number -1)" },
+      { function() tagpose.layout.cube(0.06, 0.05) end,
+        "bad argument #2 to 'cube' (number above tag_size expected for block_size, got "
+          .. "number 0.05)" },
+      { function() tagpose.layout.cube(0.02, 0.05, { [1] = "top" }) end,
+        "bad argument #3 to 'cube' (faces[1]: face '+x', '-x', '+y', '-y', '+z' or '-z', or a "
+          .. "3x3 rotation of the cube, expected)" },
+      { function() tagpose.layout.cube({ [1] = 0.02 }, 0.05, { [2] = "+x" }) end,
+        "bad argument #1 to 'cube' (tag_size has no size for tag id 2 and no default)" },
+    }) do
+      assert.equal(case[2], raised(case[1]))
+    end
   end)
 end)

@@ -1,10 +1,11 @@
 --- Blocks: the joint fit of a hypothesis and the test that keeps its tags together.
 --
 -- A hypothesis's pose is fitted to all its members' corners at once (`tagpose.layout.rigid`, from
--- the seed's pose), each member's tag at its face of the cube (`face_points`). While the joint
--- fit's error exceeds the sum of its members' own best single-tag fits by more than the frame's
--- corner noise explains (`consistent`: an F-test at level `ALPHA`, or `MERGE_FLOOR`), the
--- member with the largest excess is moved to the face that fits it best, or dropped. With
+-- the seed's pose), each member's tag at its place on the block (`tagpose.block.body`; its
+-- corners by `tagpose.layout.model.corners`). While the joint fit's error exceeds the sum of its
+-- members' own best single-tag fits by more than the frame's corner noise explains
+-- (`consistent`: an F-test at level `ALPHA`, or `MERGE_FLOOR`), the member with the largest
+-- excess is moved to the place that fits it best (a symmetric block's), or dropped. With
 -- `up`, every fit holds the block's face axis nearest up along it; with a floor, a resting
 -- block's centre at its level (`rest`). A block seen with one face keeps both candidates
 -- (`single`). Lengths are in the tag size's unit, errors in pixels.
@@ -12,12 +13,12 @@
 
 local rigid = require("tagpose.layout.rigid")
 local cube = require("tagpose.layout.cube")
+local model = require("tagpose.layout.model")
 local group = require("tagpose.block.group")
 local identity = require("tagpose.block.identity")
 
 local abs, huge = math.abs, math.huge
-local ROTATIONS = cube.ROTATIONS
-local IDENTITY = ROTATIONS[1]
+local corners = model.corners
 
 local M = {}
 
@@ -47,37 +48,16 @@ local function copy9(src, dst)
   return dst
 end
 
---- The four corners of a tag on the face G (tag → block rotation) into `out` from point
--- `first`: `X = G·c + (block_size/2)·n`, `n = -G·e_z`.
--- @tparam {number,...} out flat points to fill
--- @tparam {number,...} g flat face rotation
--- @tparam number half half the tag side
--- @tparam number half_block half the block side
--- @tparam int first the first point to write
-function M.face_points(out, g, half, half_block, first)
-  -- the face centre n·B/2 and the tag's half axes x·h, y·h
-  local nx, ny, nz = -g[3] * half_block, -g[6] * half_block, -g[9] * half_block
-  local xx, xy, xz, yx, yy, yz = g[1] * half, g[4] * half, g[7] * half, g[2] * half,
-    g[5] * half, g[8] * half
-  local o = 3 * first - 3
-  -- c1 = (-h, +h), c2 = (+h, +h), c3 = (+h, -h), c4 = (-h, -h)
-  out[o + 1], out[o + 2], out[o + 3] = nx - xx + yx, ny - xy + yy, nz - xz + yz
-  out[o + 4], out[o + 5], out[o + 6] = nx + xx + yx, ny + xy + yy, nz + xz + yz
-  out[o + 7], out[o + 8], out[o + 9] = nx + xx - yx, ny + xy - yy, nz + xz - yz
-  out[o + 10], out[o + 11], out[o + 12] = nx - xx - yx, ny - xy - yy, nz - xz - yz
-end
-
-local face_points = M.face_points
-
 -- Fill `pixels` and `points` for the members of a hypothesis.
 local function load_members(fr, h)
-  local dets, half_block = fr.dets, fr.half_block
+  local dets = fr.dets
   for m = 1, #h.members do
     local d = dets[h.members[m]]
     local px, o, half = d.px, 8 * m - 8, d.half
     pixels[o + 1], pixels[o + 2], pixels[o + 3], pixels[o + 4] = px[1], px[2], px[3], px[4]
     pixels[o + 5], pixels[o + 6], pixels[o + 7], pixels[o + 8] = px[5], px[6], px[7], px[8]
-    face_points(points, h.g[m], half, half_block, 4 * (m - 1) + 1)
+    local p = h.places[m]
+    corners(p.r, p.x, p.y, p.z, half, points, 12 * m - 11)
   end
 end
 
@@ -159,26 +139,29 @@ local function rest(fr, n, cost, sum)
   return cost + penalty, sum
 end
 
--- Move the worst member m of a hypothesis to the face that fits it best, when that halves its
--- error; true when it moved.
+-- Move the worst member m of a hypothesis on a symmetric block to the place (face and turn)
+-- that fits it best, when that halves its error; true when it moved.
 local function reassign(fr, h, m, worst_sse)
   local best_k, best_sse = nil, worst_sse
+  local places, half = fr.body.places, fr.dets[h.members[m]].half
   for k = 1, 24 do
-    face_points(points, ROTATIONS[k], fr.dets[h.members[m]].half, fr.half_block, 4 * m - 3)
+    local p = places[k]
+    corners(p.r, p.x, p.y, p.z, half, points, 12 * m - 11)
     local s = rigid.cost(fr.C, points, pixels, 4 * m - 3, 4 * m, body.r, body.tx, body.ty,
       body.tz)
     if s < best_sse then best_k, best_sse = k, s end
   end
-  if best_k and ROTATIONS[best_k] ~= h.g[m] and best_sse < 0.5 * worst_sse then
-    h.g[m] = ROTATIONS[best_k]
+  if best_k and places[best_k] ~= h.places[m] and best_sse < 0.5 * worst_sse then
+    h.places[m] = places[best_k]
     return true
   end
   return false
 end
 
---- Jointly fit a hypothesis (members, faces g, start pose); while the fit is not consistent
--- with its members' single fits, reassign the worst member to the face that fits it best, or
--- drop it. Fills `h.r`, `h.x`, `h.y`, `h.z`, `h.sse` (pixels only) and `h.cost`.
+--- Jointly fit a hypothesis (members, places, start pose); while the fit is not consistent
+-- with its members' single fits, move the worst member to the place that fits it best (on a
+-- symmetric block), or drop it. Fills `h.r`, `h.x`, `h.y`, `h.z`, `h.sse` (pixels only) and
+-- `h.cost`.
 -- @tparam table fr the frame record
 -- @tparam table h a hypothesis (`tagpose.block.group`)
 -- @treturn table h
@@ -220,13 +203,13 @@ function M.hypothesis(fr, h)
     end
     -- another face may explain the worst member (its gating candidate was the flipped one)
     local moved = false
-    if not fr.settings.faces and worst_m ~= last_reassigned then
+    if fr.body.symmetric and worst_m ~= last_reassigned then
       moved = reassign(fr, h, worst_m, worst_sse)
       if moved then last_reassigned = worst_m end
     end
     if not moved then
       table.remove(h.members, worst_m)
-      table.remove(h.g, worst_m)
+      table.remove(h.places, worst_m)
       table.remove(h.cands, worst_m)
       last_reassigned = nil
     end
@@ -277,7 +260,7 @@ function M.single(fr, s)
   local hs = {}
   for a = 1, #d.cands do
     local c = d.cands[a]
-    local h = group.new(s, settings.faces and d.face_r or IDENTITY, a, c)
+    local h = group.new(s, d.place, a, c)
     if fr.up then
       M.hypothesis(fr, h)
     else
@@ -298,8 +281,8 @@ function M.single(fr, s)
   local prev = identity.nearest_previous(settings.previous, first.x, first.y, first.z, gate)
     or identity.nearest_previous(settings.previous, second.x, second.y, second.z, gate)
   if prev and prev.decided then
-    local a1 = identity.symmetric_angle(first.r, prev.r, settings.faces)
-    local a2 = identity.symmetric_angle(second.r, prev.r, settings.faces)
+    local a1 = identity.symmetric_angle(first.r, prev.r, fr.body.symmetric)
+    local a2 = identity.symmetric_angle(second.r, prev.r, fr.body.symmetric)
     if a2 < a1 and a2 < M.TRACK_ANGLE and second.cost - first.cost < M.TRACK_K * fr.sigma2 then
       first, second = second, first
       how = "track"

@@ -3,14 +3,14 @@
 -- solved (`up` and `floor` when found with "auto", the priors' weights).
 --
 -- A detection record: `{index = its place in the caller's array, px = flat pixels,
--- half = half its tag's side, face_r = its face's rotation when the faces are known,
--- cands = {candidate, ...}, best_sse}`; a
--- candidate: `{r = flat block → camera rotation (the tag's own, or R·R_fᵀ for a known face),
--- x, y, z = the block centre it implies, sse = the tag's squared error (px²), depth = the
--- standard deviation of its depth per pixel of corner noise}`.
+-- half = half its tag's side, place = where its tag is on the block (`tagpose.block.body`; for
+-- a symmetric block the identity place, its own frame), cands = {candidate, ...}, best_sse}`;
+-- a candidate: `{r = flat block → camera rotation R·Qᵀ, x, y, z = the block centre it implies,
+-- t - R·Qᵀ·p, for the tag pose (R, t) at the place (Q, p), sse = the tag's squared error (px²),
+-- depth = the standard deviation of its depth per pixel of corner noise}`.
 --
--- The frame record: `settings` (`tagpose.block.options`, read only), the packed camera `C`,
--- `sizes` (the tag size, or sizes by id), `half_block`, `block_size`, `dets`, `skipped`
+-- The frame record: `settings` (`tagpose.block.options`, read only), `body` (the block,
+-- `tagpose.block.body`), the packed camera `C`, `half_block`, `block_size`, `dets`, `skipped`
 -- (`{index =, reason =}` each), `first_reason`, the noise (`sigma2` px², `noise_sse`,
 -- `noise_dof`, and for the F-test `n` and `frame_sse`), `up` and `floor` (those in use),
 -- `prior_w` and `floor_w` (the priors' weights, px per radian and px per length unit),
@@ -18,12 +18,15 @@
 -- @module tagpose.block.frame
 
 local args = require("tagpose.core.args")
+local body_model = require("tagpose.block.body")
+local cube = require("tagpose.layout.cube")
 local lsq = require("tagpose.core.lsq")
 local pipeline = require("tagpose.core.pipeline")
 local rotation = require("tagpose.core.rotation")
 
 local sqrt, abs, max = math.sqrt, math.abs, math.max
 local mul_t = rotation.multiply_transpose
+local IDENTITY = cube.ROTATIONS[1]
 
 local M = {}
 
@@ -43,14 +46,19 @@ local function unpack_normal(N)
     N[14], N[15], N[16], N[17], N[18], N[19], N[20], N[21]
 end
 
--- A block candidate from a tag's candidate pose (see the module's header).
-local function candidate(cand, face_r, half_block)
+-- A block candidate from a tag's candidate pose at a place on the block (see the module's
+-- header).
+local function candidate(cand, place)
   local flat = { cand.r[1], cand.r[2], cand.r[3], cand.r[4], cand.r[5], cand.r[6], cand.r[7],
     cand.r[8], cand.r[9] }
+  -- (a tag's own frame is a symmetric block's: R·Iᵀ is R)
+  local r = place.r == IDENTITY and flat or mul_t(flat, place.r, {})
+  local px, py, pz = place.x, place.y, place.z
   return {
-    r = face_r and mul_t(flat, face_r, {}) or flat,
-    x = cand.tx + half_block * flat[3], y = cand.ty + half_block * flat[6],
-    z = cand.tz + half_block * flat[9],
+    r = r,
+    x = cand.tx - (r[1] * px + r[2] * py + r[3] * pz),
+    y = cand.ty - (r[4] * px + r[5] * py + r[6] * pz),
+    z = cand.tz - (r[7] * px + r[8] * py + r[9] * pz),
     sse = cand.sse,
     -- the tag's own candidate, for its uncertainty (`tagpose.uncertainty`'s record; no
     -- quaternions: pipeline.tag does not order the candidates, so they are stale)
@@ -60,13 +68,13 @@ local function candidate(cand, face_r, half_block)
 end
 
 -- Solve one detection's corners (read into px) as a tag: its block candidates, or nil and why.
-local function solve_tag(fr, px, camera, face_r, half)
+local function solve_tag(px, camera, place, half)
   local w = work
   for k = 1, 8 do w.px[k] = px[k] end
   local ok, why = pipeline.tag(w, camera, half)
   if not ok then return nil, why end
-  local cands = { candidate(w.first, face_r, fr.half_block) }
-  if w.count == 2 then cands[2] = candidate(w.second, face_r, fr.half_block) end
+  local cands = { candidate(w.first, place) }
+  if w.count == 2 then cands[2] = candidate(w.second, place) end
   return cands
 end
 
@@ -87,25 +95,13 @@ local function add(fr, i, det, camera)
   if not finite then
     return skip(fr, i, "block: " .. (why:match("^corner ") and why or "corners: " .. why), true)
   end
-  local faces = fr.settings.faces
-  local face_r = faces and faces[det.id]
-  if faces and not face_r then
-    return skip(fr, i, "block: tag id " .. tostring(det.id) .. " is on no face of options.faces")
-  end
-  local size = fr.sizes
-  if type(size) == "table" then
-    size = size[det.id]
-    if size == nil then size = fr.sizes.default end
-    if size == nil then
-      return skip(fr, i, "block: tag_size has no size for tag id " .. tostring(det.id)
-        .. " and no default")
-    end
-  end
+  local place, half = body_model.place(fr.body, det.id)
+  if not place then return skip(fr, i, half) end
   if finite ~= true then
     return skip(fr, i, "tagpose: corner " .. finite .. " is not finite", true)
   end
   local cands
-  cands, why = solve_tag(fr, px, camera, face_r, 0.5 * size)
+  cands, why = solve_tag(px, camera, place, half)
   if not cands then return skip(fr, i, why, true) end
   -- the relative depth error per pixel of corner noise: 1 / apparent size (px), from the
   -- quadrilateral's area (half the cross product of its diagonals)
@@ -117,19 +113,19 @@ local function add(fr, i, det, camera)
     c.depth = sqrt(c.x * c.x + c.y * c.y + c.z * c.z) * relative
     if c.sse < best then best = c.sse end
   end
-  fr.dets[#fr.dets + 1] = { index = i, px = px, cands = cands, face_r = face_r, best_sse = best,
-    half = 0.5 * size }
+  fr.dets[#fr.dets + 1] = { index = i, px = px, cands = cands, place = place, best_sse = best,
+    half = half }
 end
 
 --- A frame's record with its detections solved.
 -- @tparam table settings the options read (`tagpose.block.options.read`)
 -- @tparam {table,...} detections the caller's array of `{id =, corners =}`
 -- @tparam table camera a checked camera
--- @tparam number|table tag_size a size, or sizes by tag id with an optional `default`
--- @tparam number block_size
+-- @tparam table body the block (`tagpose.block.body.new`)
 -- @treturn table the frame record (see the module's header)
-function M.new(settings, detections, camera, tag_size, block_size)
-  local fr = { settings = settings, C = lsq.pack(camera), sizes = tag_size,
+function M.new(settings, detections, camera, body)
+  local block_size = body.block_size
+  local fr = { settings = settings, body = body, C = lsq.pack(camera),
     half_block = 0.5 * block_size, block_size = block_size, dets = {}, skipped = {},
     up = settings.up, floor = settings.floor, default_up = { 0, -1, 0 } }
   for i = 1, #detections do add(fr, i, detections[i], camera) end

@@ -7,8 +7,12 @@
 -- that agree with it; a hypothesis seeded by one candidate takes the free detections linked to
 -- it, one per face.
 --
--- A hypothesis record (`new`): `members` (indices into the frame's detections), `g` (each
--- member's face: the flat tag → block rotation), `cands` (each member's candidate index),
+-- With a symmetric block (`tagpose.block.body`) the rotations agree modulo the cube's
+-- rotations, and the one between them says where on the block the other tag is; with an
+-- identified one they agree themselves, each tag at its id's place.
+--
+-- A hypothesis record (`new`): `members` (indices into the frame's detections), `places` (each
+-- member's place on the block, `tagpose.block.body`), `cands` (each member's candidate index),
 -- `score` (each member's agreement distance), `start` (the seed candidate: the fit's start),
 -- `gated` (the members before the fit), and after a fit `r, x, y, z` (the block pose), `sse`
 -- (pixels only) and `cost` (with the priors; `math.huge` when the fit failed).
@@ -18,8 +22,7 @@ local rotation = require("tagpose.core.rotation")
 local cube = require("tagpose.layout.cube")
 
 local sqrt, abs, rad, huge = math.sqrt, math.abs, math.rad, math.huge
-local ROTATIONS, INVERSE = cube.ROTATIONS, cube.INVERSE
-local IDENTITY = ROTATIONS[1]
+local INVERSE = cube.INVERSE
 local t_mul = rotation.transpose_multiply
 
 local M = {}
@@ -42,19 +45,19 @@ local work = {} -- scratch: 3×3 products
 
 --- A hypothesis of one member (see the module's header).
 -- @tparam int s the member: a detection's index in the frame
--- @tparam {number,...} g its face rotation
+-- @tparam table place its place on the block
 -- @tparam int a its candidate's index
 -- @tparam table start the candidate the fit starts from
 -- @treturn table
-function M.new(s, g, a, start)
-  return { members = { s }, g = { g }, cands = { a }, score = { 0 }, start = start,
+function M.new(s, place, a, start)
+  return { members = { s }, places = { place }, cands = { a }, score = { 0 }, start = start,
     gated = nil, r = nil, x = 0, y = 0, z = 0, sse = huge, cost = huge }
 end
 
 -- Does candidate b of another detection agree with the block of candidate a? Returns a distance
--- (smaller is better) and, when the faces are not known, the index of the face rotation G of b
--- in a's block frame (b's tag frame written in a's block frame); or nil.
-local function agree(a, b, faces, block_size, sigma)
+-- (smaller is better) and, for a symmetric block, the index of b's place in a's block frame
+-- (the cube rotation of b's tag frame written in a's block frame); or nil.
+local function agree(a, b, symmetric, block_size, sigma)
   local dx, dy, dz = b.x - a.x, b.y - a.y, b.z - a.z
   local d2 = dx * dx + dy * dy + dz * dz
   local pg, ag = M.PERP_GATE * block_size, M.ALONG_GATE * block_size
@@ -68,11 +71,11 @@ local function agree(a, b, faces, block_size, sigma)
   local perp2 = d2 - along * along
   if perp2 > pg * pg or abs(along) > ag then return nil end
   local k, angle
-  if faces then
-    -- known faces: the block frames must agree themselves
-    angle = rotation.angle(a.r, b.r)
-  else
+  if symmetric then
     k, angle = cube.nearest(t_mul(a.r, b.r, work))
+  else
+    -- each tag at its place: the block frames must agree themselves
+    angle = rotation.angle(a.r, b.r)
   end
   if angle > M.ROTATION_GATE then return nil end
   return sqrt(perp2) / pg + angle / M.ROTATION_GATE, k
@@ -137,13 +140,14 @@ local function neighbours(C, i, reach2, out)
 end
 
 --- For every candidate a of every detection s (key 2s + a), the other detections with a
--- candidate that agrees with it: `links[key]` a list of `{G, score, b, j}` — for each such
--- detection j its best agreeing candidate b, G that candidate's face in a's block frame — in
--- the order of j. Each pair of candidates is tried once.
+-- candidate that agrees with it: `links[key]` a list of `{place, score, b, j}` — for each such
+-- detection j its best agreeing candidate b, and where that candidate puts j's tag on the
+-- block of a — in the order of j. Each pair of candidates is tried once.
 -- @tparam table fr the frame record (`tagpose.block.frame`)
 -- @treturn table links
 function M.links(fr)
-  local dets, block_size, faces = fr.dets, fr.block_size, fr.settings.faces
+  local dets, block_size, body = fr.dets, fr.block_size, fr.body
+  local symmetric, places = body.symmetric, body.places
   local sigma = sqrt(fr.sigma2)
   -- the coarsest gate: no agreeing pair is further apart than this
   local deepest = 0
@@ -190,17 +194,17 @@ function M.links(fr)
         if a == 0 then s, a = s - 1, 2 end
         if b == 0 then j, b = j - 1, 2 end
         local ds, dj = dets[s], dets[j]
-        local score, g = agree(ds.cands[a], dj.cands[b], faces, block_size, sigma)
+        local score, g = agree(ds.cands[a], dj.cands[b], symmetric, block_size, sigma)
         if score then
           -- j seen from s's candidate a, and s seen from j's candidate b
           local row_a, row_b = by[lo], by[hi]
           local link = row_a[j]
           if not link or score < link[2] then
-            row_a[j] = { faces and dj.face_r or ROTATIONS[g], score, b, j }
+            row_a[j] = { symmetric and places[g] or dj.place, score, b, j }
           end
           link = row_b[s]
           if not link or score < link[2] then
-            row_b[s] = { faces and ds.face_r or ROTATIONS[INVERSE[g]], score, a, s }
+            row_b[s] = { symmetric and places[INVERSE[g]] or ds.place, score, a, s }
           end
         end
       end
@@ -230,25 +234,25 @@ end
 -- @tparam table links `links(fr)`
 -- @treturn table the hypothesis, with `gated` its members
 function M.seeded(fr, s, a, free, links)
-  local dets, faces = fr.dets, fr.settings.faces
-  local h = M.new(s, faces and dets[s].face_r or IDENTITY, a, dets[s].cands[a])
+  local dets = fr.dets
+  local h = M.new(s, dets[s].place, a, dets[s].cands[a])
   local row = links[2 * s + a]
   for i = 1, #row do
     local link = row[i]
     local j = link[4]
     if free[j] then
-      local best_g, best_score, best_b = link[1], link[2], link[3]
-      -- one tag per face: the closer claim keeps it
+      local best_p, best_score, best_b = link[1], link[2], link[3]
+      -- one tag per place (per face of a symmetric block, whatever its turn): the closer claim
+      -- keeps it
       local clash = nil
       for m = 1, #h.members do
-        local gm = h.g[m]
-        if gm[3] == best_g[3] and gm[6] == best_g[6] and gm[9] == best_g[9] then clash = m end
+        if h.places[m].key == best_p.key then clash = m end
       end
       if not clash then
         local m = #h.members + 1
-        h.members[m], h.g[m], h.cands[m], h.score[m] = j, best_g, best_b, best_score
+        h.members[m], h.places[m], h.cands[m], h.score[m] = j, best_p, best_b, best_score
       elseif clash > 1 and best_score < h.score[clash] then
-        h.members[clash], h.g[clash], h.cands[clash], h.score[clash] = j, best_g, best_b,
+        h.members[clash], h.places[clash], h.cands[clash], h.score[clash] = j, best_p, best_b,
           best_score
       end
     end
@@ -274,17 +278,17 @@ end
 -- @tparam table h a hypothesis not fitted yet
 -- @tparam {table,...} fitted the hypotheses fitted this frame over h's set of detections, in
 --   the order fitted
--- @tparam table faces the known faces (or nil)
+-- @tparam boolean symmetric whether the block is symmetric (`tagpose.block.body`)
 -- @treturn table|nil
-function M.twin_of(h, fitted, faces)
+function M.twin_of(h, fitted, symmetric)
   for i = 1, #fitted do
     local f = fitted[i]
     if f.cost < huge then
       local _, angle
-      if faces then
-        angle = rotation.angle(f.r, h.start.r)
-      else
+      if symmetric then
         _, angle = cube.nearest(t_mul(f.r, h.start.r, work))
+      else
+        angle = rotation.angle(f.r, h.start.r)
       end
       if angle < M.TWIN_ANGLE then return f end
     end

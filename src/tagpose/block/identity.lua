@@ -5,7 +5,9 @@
 -- equivalents, the frame nearest the previous rotation, so its orientation never jumps between
 -- equivalents. A new block takes the canonical frame: block z the face axis closest to up
 -- (the frame's up, default the camera's −y), block x the remaining face axis closest to the
--- direction from the camera to the block's centre (`tagpose.layout.cube.canonical`).
+-- direction from the camera to the block's centre (`tagpose.layout.cube.canonical`). That is
+-- for a symmetric block (`tagpose.block.body`); an identified one is returned in its layout's
+-- frame, found again or not.
 -- @module tagpose.block.identity
 
 local compat = require("tagpose.core.compat")
@@ -24,14 +26,14 @@ M.TRACK_GATE = 0.75
 
 local work = {} -- scratch: 3×3 products
 
---- Angle between rotation r and the nearest symmetric equivalent of ref (or ref itself when
--- the faces are known).
+--- Angle between rotation r and the nearest symmetric equivalent of ref (of a symmetric
+-- block; ref itself for an identified one, `tagpose.block.body`).
 -- @tparam {number,...} r flat rotation
 -- @tparam {number,...} ref flat rotation
--- @tparam[opt] table faces the known faces
+-- @tparam boolean symmetric whether the block is symmetric
 -- @treturn number radians
-function M.symmetric_angle(r, ref, faces)
-  if faces then return rotation.angle(r, ref) end
+function M.symmetric_angle(r, ref, symmetric)
+  if not symmetric then return rotation.angle(r, ref) end
   local _, angle = cube.nearest(t_mul(r, ref, work))
   return angle
 end
@@ -81,18 +83,19 @@ function M.match(found, previous, gate)
   return match
 end
 
---- The rotation a block is returned with: the fit's own when the faces are known, the
--- equivalent nearest its previous rotation when tracked, else the canonical one.
+--- The rotation a block is returned with: the fit's own for an identified block (its layout's
+-- frame), else the equivalent nearest its previous rotation when tracked, else the canonical
+-- one.
 -- @tparam {number,...} r the fit's flat rotation
 -- @tparam number x the block's centre
 -- @tparam number y
 -- @tparam number z
--- @tparam table fr the frame record (`settings.faces`, `up`, `default_up`)
+-- @tparam table fr the frame record (`body`, `up`, `default_up`)
 -- @tparam[opt] table prev the previous block it continues
 -- @tparam {number,...} out flat rotation to fill
 -- @treturn {number,...} out
 function M.output_rotation(r, x, y, z, fr, prev, out)
-  if fr.settings.faces then
+  if not fr.body.symmetric then
     for i = 1, 9 do out[i] = r[i] end
     return out
   end

@@ -1,7 +1,8 @@
 --- Blocks: the options of `tagpose.block.solve`, read once into a settings record that nothing
 -- writes afterwards.
 --
--- The record: `faces` (tag id → flat face rotation `R_f`, or nil), `up` (a unit vector
+-- The record: `layout` (the caller's layout, or nil), `faces` (tag id → face name or nested
+-- cube rotation, checked; or nil), `up` (a unit vector
 -- `{x, y, z}` as an array, or nil), `auto_up`, `up_tolerance` (radians), `floor` (or nil),
 -- `auto_floor`, `floor_tolerance` (or nil for the default), `max_iterations`, `previous` (the
 -- previous frame's blocks as records `{x, y, z, r, id, decided}`, or nil), `next_id`, and the
@@ -12,10 +13,11 @@ local compat = require("tagpose.core.compat")
 local args = require("tagpose.core.args")
 local rotation = require("tagpose.core.rotation")
 local cube = require("tagpose.layout.cube")
+local model = require("tagpose.layout.model")
 
 local is_finite, is_positive, describe = compat.is_finite, args.is_positive, args.describe
 local sqrt, rad = math.sqrt, math.rad
-local ROTATIONS, FACES = cube.ROTATIONS, cube.FACES
+local NORMALS = cube.NORMALS
 
 local M = {}
 
@@ -39,42 +41,29 @@ local function read_direction(v, name)
   return { x / n, y / n, z / n }
 end
 
--- A flat rotation from a nested one when it is one of the cube's rotations; or nil.
-local function cube_rotation(m)
-  if type(m) ~= "table" then return nil end
-  local flat = {}
-  for i = 1, 3 do
-    local row = m[i]
-    if type(row) ~= "table" then return nil end
-    for j = 1, 3 do
-      if not is_finite(row[j]) then return nil end
-      flat[(i - 1) * 3 + j] = row[j]
-    end
-  end
-  local k, angle = cube.nearest(flat)
-  if angle > 1e-6 then return nil end
-  return ROTATIONS[k]
-end
-
--- options.faces: id → face name or nested cube rotation; as id → flat R_f. Or nil, misuse.
+-- options.faces: id → face name or nested cube rotation, checked and copied (for
+-- `tagpose.layout.cube`); or nil and the misuse.
 local function read_faces(faces)
+  if type(faces) ~= "table" then
+    return nil, "options.faces: table (tag id -> face) expected, got " .. type(faces)
+  end
   local out = {}
   for id, f in pairs(faces) do
     if type(f) == "string" then
-      if not FACES[f] then
+      if not NORMALS[f] then
         return nil, "options.faces[" .. tostring(id) .. "]: face '+x', '-x', '+y', '-y', '+z' "
           .. "or '-z' expected, got string " .. f
       end
-      out[id] = FACES[f].rotation
-    else
-      local r = cube_rotation(f)
-      if not r then
-        return nil, "options.faces[" .. tostring(id) .. "]: face name or 3x3 rotation of the "
-          .. "cube (the tag frame in the block frame) expected"
-      end
-      out[id] = r
+    elseif not cube.of_nested(f) then
+      return nil, "options.faces[" .. tostring(id) .. "]: face name or 3x3 rotation of the "
+        .. "cube (the tag frame in the block frame) expected"
     end
+    if not model.is_id(id) then
+      return nil, "options.faces: key " .. describe(id) .. " is not a tag id (whole number)"
+    end
+    out[id] = f
   end
+  if next(out) == nil then return nil, "options.faces: no tag id (tag id -> face) given" end
   return out
 end
 
@@ -102,7 +91,7 @@ end
 
 -- the options block.solve takes
 local OPTIONS = { "up", "up_tolerance", "floor", "floor_tolerance", "previous", "faces",
-  "max_iterations", "sigma" }
+  "layout", "max_iterations", "sigma" }
 
 -- the scalar options: name, check, what the check expects
 local SCALAR_OPTIONS = {
@@ -147,12 +136,18 @@ function M.read(options)
     s.up, problem = read_direction(options.up, "options.up")
     if not s.up then return nil, problem .. " (or 'auto')" end
   end
-  if options.faces ~= nil then
-    if type(options.faces) ~= "table" then
-      return nil, "options.faces: table (tag id -> face) expected, got " .. type(options.faces)
-    end
+  if options.faces ~= nil and options.layout ~= nil then
+    return nil, "options.faces and options.layout: give one (faces names the layout "
+      .. "tagpose.layout.cube(tag_size, block_size, faces))"
+  elseif options.faces ~= nil then
     s.faces, problem = read_faces(options.faces)
     if not s.faces then return nil, problem end
+  elseif options.layout ~= nil then
+    if type(options.layout) ~= "table" then
+      return nil, "options.layout: layout {tags = {[id] = {size =, position =, quaternion =}}} "
+        .. "expected, got " .. type(options.layout)
+    end
+    s.layout = options.layout
   end
   if options.previous ~= nil then
     local ok

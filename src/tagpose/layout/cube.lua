@@ -1,23 +1,16 @@
---- The cube: its 24 rotations, its six faces, and the choice of one frame among its symmetric
--- equivalents.
+--- The cube: its 24 rotations, the names of its faces, and the choice of one frame among its
+-- symmetric equivalents.
 --
 -- A block frame has its origin at the cube's centre and its axes along the face normals.
 -- Rotations are flat, row-major 3×3 arrays (see `tagpose.rotation`). The cube's rotation group
 -- is the 24 signed permutation matrices with determinant +1; when the faces cannot be told
 -- apart, the frames `R·G` for every `G` of the group are the same block.
 --
--- The faces follow one fixed convention (that of the lab's blocks and of the dev data sets):
--- face `f` with outward normal `n_f` carries a tag centred on it whose frame, written in the
--- block frame, is `R_f = [tag_x tag_y tag_z]` (columns) with `tag_z = -n_f` (into the block),
--- so `X_block = R_f·X_tag + (block_size/2)·n_f`:
---
--- * side faces `+x`, `-x`, `+y`, `-y`: `tag_y = -z` (the tag stands upright on an upright
---   block), `tag_x = tag_y × tag_z`;
--- * top `+z`: `tag_x = +x`, `tag_y = -y`; bottom `-z`: `tag_x = +x`, `tag_y = +y`.
---
--- Every `R_f` is one of the 24 rotations, so a tag's own rotation is itself a block frame.
--- Conversely a tag whose rotation in the block frame is `G` (one of the 24) sits on the face
--- with outward normal `-G·e_z`.
+-- A face is named by its outward normal: `"+x"`, `"-x"`, `"+y"`, `"-y"`, `"+z"`, `"-z"`. A tag
+-- lies on a face with its z axis into the block, so a tag whose frame in the block frame is
+-- `G` sits on the face with outward normal `-G·e_z` (`face_of`). Where the tags sit on the
+-- faces is a layout's business: `tagpose.layout.cube` places the standard cube's tags, and a
+-- block is any layout of tags on a cube (`tagpose.block.body`).
 -- @module tagpose.layout.cube
 
 local rotation = require("tagpose.core.rotation")
@@ -59,23 +52,23 @@ end
 
 local ROTATIONS = M.ROTATIONS
 
---- The faces, by name (`"+x"`, `"-x"`, `"+y"`, `"-y"`, `"+z"`, `"-z"`): each
--- `{normal = {x, y, z}, rotation = R_f}`, the outward normal and the tag frame in the block
--- frame (flat), as the module's header describes. Constants.
-M.FACES = {}
+--- The face names, in the order of the axes: `"+x"`, `"-x"`, `"+y"`, `"-y"`, `"+z"`, `"-z"`.
+-- A constant.
+M.FACE_NAMES = {}
 
-local function face(name, normal, r)
-  M.FACES[name] = { normal = normal, rotation = r }
+--- The outward normal `{x, y, z}` of each face, by name. Constants.
+M.NORMALS = {}
+
+for axis, letter in ipairs({ "x", "y", "z" }) do
+  for _, sign in ipairs({ 1, -1 }) do
+    local name = (sign > 0 and "+" or "-") .. letter
+    local n = { 0, 0, 0 }
+    n[axis] = sign
+    M.FACE_NAMES[#M.FACE_NAMES + 1], M.NORMALS[name] = name, n
+  end
 end
 
-face("+x", { 1, 0, 0 }, { 0, 0, -1, 1, 0, 0, 0, -1, 0 })
-face("-x", { -1, 0, 0 }, { 0, 0, 1, -1, 0, 0, 0, -1, 0 })
-face("+y", { 0, 1, 0 }, { -1, 0, 0, 0, 0, -1, 0, -1, 0 })
-face("-y", { 0, -1, 0 }, { 1, 0, 0, 0, 0, 1, 0, -1, 0 })
-face("+z", { 0, 0, 1 }, { 1, 0, 0, 0, -1, 0, 0, 0, -1 })
-face("-z", { 0, 0, -1 }, { 1, 0, 0, 0, 1, 0, 0, 0, 1 })
-
-local NORMAL_NAMES = { "+x", "-x", "+y", "-y", "+z", "-z" }
+local NORMAL_NAMES = M.FACE_NAMES
 
 --- `INVERSE[k]` is the index of the inverse (transpose) of `ROTATIONS[k]`.
 M.INVERSE = {}
@@ -121,6 +114,31 @@ end
 
 for k, g in ipairs(ROTATIONS) do
   M.INVERSE[k] = M.nearest({ g[1], g[4], g[7], g[2], g[5], g[8], g[3], g[6], g[9] })
+end
+
+--- The cube rotation a nested 3×3 matrix is (to within `angle`), as an index into `ROTATIONS`.
+-- @tparam any m `{{r11, r12, r13}, {r21, r22, r23}, {r31, r32, r33}}`
+-- @tparam[opt=1e-6] number angle how far from it `m` may be, radians
+-- @treturn int|nil the index, or nil when `m` is not a table of finite rows or is further (in
+--   the Frobenius norm, as a rotation that far would be)
+function M.of_nested(m, angle)
+  if type(m) ~= "table" then return nil end
+  local flat = {}
+  for i = 1, 3 do
+    local row = m[i]
+    if type(row) ~= "table" then return nil end
+    for j = 1, 3 do
+      local v = row[j]
+      if not (type(v) == "number" and v == v and abs(v) < math.huge) then return nil end
+      flat[(i - 1) * 3 + j] = v
+    end
+  end
+  -- the nearest, and how far: ‖m − G‖² = 4 (1 − cos θ) for a rotation m at angle θ from G
+  local k = M.nearest(flat)
+  local g, d2 = ROTATIONS[k], 0
+  for i = 1, 9 do d2 = d2 + (flat[i] - g[i]) ^ 2 end
+  if not (d2 <= 4 * (1 - math.cos(angle or 1e-6)) + 1e-15) then return nil end
+  return k
 end
 
 --- Name of the face whose outward normal is `(nx, ny, nz)` (the nearest axis direction).

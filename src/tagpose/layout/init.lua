@@ -13,20 +13,30 @@
 --   (`tagpose.layout.calibrate`);
 -- * `read` and `write` keep layouts in files: Lua data files, apriltag_ros `tags.yaml` and CSV
 --   tables (`tagpose.formats.layout`);
--- * `cube` builds the nominal layout of a cube block (`tagpose.layout.cube`'s faces).
+-- * `cube` builds the layout of a cube block with a centred tag on each face, the blocks'
+--   standard cube (`tagpose.block` solves cubes given as layouts).
 -- @module tagpose.layout
 
 local args = require("tagpose.core.args")
 local camera_model = require("tagpose.core.camera")
 local cube = require("tagpose.layout.cube")
 local model = require("tagpose.layout.model")
-local frame = require("tagpose.layout.solve")
-local calibration = require("tagpose.layout.calibrate")
-local io_layout = require("tagpose.formats.layout")
 
 local is_positive, describe = args.is_positive, args.describe
 
 local M = {}
+
+-- The modules of solve, calibrate and the files, loaded when first used: `cube` alone (what
+-- `tagpose.block` takes) loads none of them.
+local loaded = {}
+local function lazy(name)
+  local module = loaded[name]
+  if not module then
+    module = require(name)
+    loaded[name] = module
+  end
+  return module
+end
 
 -- Raise a misuse at the caller of the entry point (`depth`: the helpers between them).
 local function raise(n, fname, message, depth)
@@ -106,7 +116,7 @@ function M.solve(detections, camera, layout, options)
       tags[id] = t
     end
   end
-  return frame.solve(detections, camera, tags, o)
+  return lazy("tagpose.layout.solve").solve(detections, camera, tags, o)
 end
 
 local CALIBRATE_OPTIONS = {
@@ -153,7 +163,7 @@ function M.calibrate(frames, camera, layout, options)
     raise(4, "calibrate", "options.reference: tag " .. tostring(o.reference)
       .. " is not in the layout")
   end
-  return calibration.calibrate(frames, camera, tags, o, layout.name)
+  return lazy("tagpose.layout.calibrate").calibrate(frames, camera, tags, o, layout.name)
 end
 
 local READ_OPTIONS = {
@@ -177,7 +187,7 @@ local READ_OPTIONS = {
 function M.read(path, options)
   if type(path) ~= "string" then raise(1, "read", "string expected, got " .. type(path)) end
   if type(options) ~= "string" then read_options(options, 2, "read", READ_OPTIONS) end
-  return io_layout.read(path, options)
+  return lazy("tagpose.formats.layout").read(path, options)
 end
 
 --- Write a layout file, in the format its extension names (as `read`).
@@ -190,35 +200,76 @@ function M.write(path, layout)
   if type(path) ~= "string" then raise(1, "write", "string expected, got " .. type(path)) end
   local tags, why = model.read(layout)
   if not tags then raise(2, "write", why) end
-  return io_layout.write(path, tags, layout.name)
+  return lazy("tagpose.formats.layout").write(path, tags, layout.name)
 end
 
---- The nominal layout of a cube block: a centred tag on each face, as `tagpose.layout.cube` places
--- them (tag z into the block).
--- @tparam number tag_size side of the tags' black squares
--- @tparam number block_size side of the cube (> tag_size)
--- @tparam[opt] table faces tag id → face (`"+x"`, `"-x"`, `"+y"`, `"-y"`, `"+z"`, `"-z"`);
---   default ids 0 to 5 on `+x`, `-x`, `+y`, `-y`, `+z`, `-z`
--- @treturn table layout
--- @raise `bad argument #n to 'cube'` for bad sizes or faces
+-- The tag frame on each face of the standard cube, `[tag_x tag_y tag_z]` (columns) in the
+-- block frame, flat row-major: tag z into the block; on the side faces tag y = -z (the tag
+-- upright on an upright block), tag x = tag y × tag z; on the top tag x = +x, tag y = -y; on
+-- the bottom tag x = +x, tag y = +y. The one place where tagpose puts tags on a cube's faces.
+local FACE_FRAMES = {
+  ["+x"] = { 0, 0, -1, 1, 0, 0, 0, -1, 0 },
+  ["-x"] = { 0, 0, 1, -1, 0, 0, 0, -1, 0 },
+  ["+y"] = { -1, 0, 0, 0, 0, -1, 0, -1, 0 },
+  ["-y"] = { 1, 0, 0, 0, 0, 1, 0, -1, 0 },
+  ["+z"] = { 1, 0, 0, 0, -1, 0, 0, 0, -1 },
+  ["-z"] = { 1, 0, 0, 0, 1, 0, 0, 0, 1 },
+}
+
+-- the default faces: ids 0 to 5 on +x, -x, +y, -y, +z, -z
+local DEFAULT_FACES = { [0] = "+x", "-x", "+y", "-y", "+z", "-z" }
+
+-- The size of tag `id` in `tag_size` (a size, or sizes by id with an optional `default`).
+local function size_of(tag_size, id)
+  if type(tag_size) ~= "table" then return tag_size end
+  local size = tag_size[id]
+  if size == nil then size = tag_size.default end
+  return size
+end
+
+--- The layout of a cube block with a centred tag on each face named: the standard cube, whose
+-- faces carry the tags as the lab's blocks do (tag z into the block; on the side faces the
+-- tag upright on an upright block; on the top tag x = +x, tag y = -y; on the bottom tag
+-- x = +x, tag y = +y). Every face's tag frame `R_f` is one of the cube's rotations
+-- (`tagpose.layout.cube`), and `X_block = R_f·X_tag + (block_size/2)·n_f`, `n_f` the face's
+-- outward normal. With `symmetric = true` set on the result, it is the block of
+-- `tagpose.block.solve` whose faces cannot be told apart (its default).
+-- @tparam number|table tag_size side of the tags' black squares; or the sides by tag id,
+--   `{[id] = size, default = size}`
+-- @tparam number block_size side of the cube (> every tag's side)
+-- @tparam[opt] table faces tag id → face (`"+x"`, `"-x"`, `"+y"`, `"-y"`, `"+z"`, `"-z"`, or the
+--   nested 3×3 rotation of the tag frame in the block frame, one of the cube's: a tag turned on
+--   its face); default ids 0 to 5 on `+x`, `-x`, `+y`, `-y`, `+z`, `-z`
+-- @treturn table layout `{tags = {[id] = {size =, position =, quaternion =}}}`
+-- @raise `bad argument #n to 'cube'` for bad sizes or faces, or a tag of the faces without a
+--   size
+-- @usage
+-- local blocks = tagpose.layout.cube(0.024, 0.055, { [7] = "+z", [8] = "-x" })
 function M.cube(tag_size, block_size, faces)
-  if not is_positive(tag_size) then
-    raise(1, "cube", "positive number expected for tag_size, got " .. describe(tag_size))
+  local problem = args.check_sizes(tag_size, "tag_size")
+  if problem then raise(1, "cube", problem) end
+  for _, size in pairs(type(tag_size) == "table" and tag_size or { tag_size }) do
+    if not (is_positive(block_size) and block_size > size) then
+      raise(2, "cube", "number above tag_size expected for block_size, got "
+        .. describe(block_size))
+    end
   end
-  if not (is_positive(block_size) and block_size > tag_size) then
-    raise(2, "cube", "number above tag_size expected for block_size, got " .. describe(block_size))
-  end
-  faces = faces or { [0] = "+x", "-x", "+y", "-y", "+z", "-z" }
+  faces = faces or DEFAULT_FACES
   if type(faces) ~= "table" then raise(3, "cube", "table expected, got " .. type(faces)) end
   local tags, half = {}, 0.5 * block_size
-  for id, name in pairs(faces) do
-    local f = cube.FACES[name]
-    if not (model.is_id(id) and f) then
+  for id, face in pairs(faces) do
+    local k = type(face) ~= "string" and cube.of_nested(face)
+    local r = FACE_FRAMES[face] or cube.ROTATIONS[k]
+    if not (model.is_id(id) and r) then
       raise(3, "cube", "faces[" .. tostring(id) .. "]: face '+x', '-x', '+y', '-y', '+z' or "
-        .. "'-z' expected")
+        .. "'-z', or a 3x3 rotation of the cube, expected")
     end
-    local n = f.normal
-    tags[id] = model.entry(f.rotation, half * n[1], half * n[2], half * n[3], tag_size)
+    local size = size_of(tag_size, id)
+    if size == nil then
+      raise(1, "cube", "tag_size has no size for tag id " .. tostring(id) .. " and no default")
+    end
+    -- the face's outward normal: -R_f·e_z
+    tags[id] = model.entry(r, 0 - half * r[3], 0 - half * r[6], 0 - half * r[9], size)
   end
   return { tags = tags }
 end

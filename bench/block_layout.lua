@@ -1,0 +1,131 @@
+-- Blocks of a calibrated cube: calibrate a glued cube's nominal layout from DIR/calib (as
+-- bench/score_layout.lua does), then solve DIR/test's frames with tagpose.block.solve given the
+-- nominal, the calibrated and the true layout as options.layout, beside tagpose.layout.solve
+-- given the same layouts.
+--
+--   lua5.4 bench/block_layout.lua DIR
+--
+-- DIR is a data set drawn like bench/dev/layout_cube (bench/make_layout.lua): camera.lua,
+-- nominal_layout.csv, truth_layout.csv, calib/corners.csv, test/corners.csv and
+-- test/truth_tags.csv. Printed per layout and solver: the test centres (the camera-frame centre
+-- of every tag of the cube, seen or not, predicted from the pose of each test frame with the
+-- layout solved with, against truth_tags.csv: median and 95th percentile, mm), the frames
+-- given a pose, and the time per frame (os.clock, this VM). A block.solve frame whose tags
+-- make more than one block is scored by its block of the most tags.
+
+local root = arg and arg[0] and arg[0]:match("^(.-)/?bench/[^/]*$")
+root = (root == nil or root == "") and "." or root
+package.path = root .. "/src/?.lua;" .. root .. "/src/?/init.lua;" .. package.path
+
+local tagpose = require("tagpose")
+local log = require("tagpose.tools.log")
+local rotation = require("tagpose.core.rotation")
+
+local sqrt, floor = math.sqrt, math.floor
+
+local dir = arg[1]
+if not dir then
+  io.stderr:write("usage: lua bench/block_layout.lua DIR\n")
+  os.exit(2)
+end
+
+local function check(v, err)
+  if v == nil then
+    io.stderr:write(tostring(err) .. "\n")
+    os.exit(1)
+  end
+  return v
+end
+
+local camera = check(log.read_camera(dir .. "/camera.lua"))
+camera = { fx = camera.fx, fy = camera.fy, cx = camera.cx, cy = camera.cy,
+  distortion = camera.distortion, model = camera.model }
+local nominal = check(tagpose.layout.read(dir .. "/nominal_layout.csv"))
+local truth = check(tagpose.layout.read(dir .. "/truth_layout.csv"))
+
+-- frames of detections, in frame order, and their frame numbers
+local function frames_of(path)
+  local rows = check(log.read_corners(path))
+  local by, order = {}, {}
+  for _, r in ipairs(rows) do
+    if not by[r.frame] then
+      by[r.frame] = {}
+      order[#order + 1] = r.frame
+    end
+    local f = by[r.frame]
+    f[#f + 1] = { id = r.tag, corners = r.corners }
+  end
+  table.sort(order)
+  local frames = {}
+  for i, k in ipairs(order) do frames[i] = by[k] end
+  return frames, order
+end
+
+local function quantile(list, p)
+  table.sort(list)
+  if #list == 0 then return 0 / 0 end
+  local x = p * (#list - 1) + 1
+  local lo = floor(x)
+  local hi = math.min(lo + 1, #list)
+  return list[lo] + (x - lo) * (list[hi] - list[lo])
+end
+
+local test_frames, test_ids = frames_of(dir .. "/test/corners.csv")
+local truth_by = {}
+for _, e in ipairs(check(log.read_poses(dir .. "/test/truth_tags.csv"))) do
+  truth_by[e.frame] = truth_by[e.frame] or {}
+  truth_by[e.frame][e.tag] = e.pose.position
+end
+
+-- the pose a solver gives a frame: the body of layout.solve, the block of the most tags of
+-- block.solve
+local SOLVERS = {
+  { "block.solve", function(dets, layout)
+    local blocks = tagpose.block.solve(dets, camera, nil, nil, { layout = layout })
+    local best = nil
+    for _, b in ipairs(blocks or {}) do
+      if not best or b.faces > best.faces then best = b end
+    end
+    return best
+  end },
+  { "layout.solve", function(dets, layout) return tagpose.layout.solve(dets, camera, layout) end },
+}
+
+-- test centre errors: median, p95 (mm), frames given a pose, µs per frame
+local function score(solve, layout)
+  local poses = {}
+  local t0 = os.clock()
+  for k, dets in ipairs(test_frames) do poses[k] = solve(dets, layout) or false end
+  local per = (os.clock() - t0) / #test_frames
+  local errs, solved = {}, 0
+  for k, pose in ipairs(poses) do
+    if pose then
+      solved = solved + 1
+      local r, t = rotation.from_nested(pose.rotation), pose.position
+      for id, p in pairs(truth_by[test_ids[k]]) do
+        local c = layout.tags[id].position
+        local x = r[1] * c.x + r[2] * c.y + r[3] * c.z + t.x
+        local y = r[4] * c.x + r[5] * c.y + r[6] * c.z + t.y
+        local z = r[7] * c.x + r[8] * c.y + r[9] * c.z + t.z
+        errs[#errs + 1] = 1000 * sqrt((x - p.x) ^ 2 + (y - p.y) ^ 2 + (z - p.z) ^ 2)
+      end
+    end
+  end
+  return quantile(errs, 0.5), quantile(errs, 0.95), solved, 1e6 * per
+end
+
+local calibrated = check(tagpose.layout.calibrate(frames_of(dir .. "/calib/corners.csv"), camera,
+  nominal))
+
+print(("%s: %d test frames (%s)"):format(dir, #test_frames,
+  _VERSION .. (rawget(_G, "jit") and " " .. rawget(_G, "jit").version or "")))
+print("| layout | solver | test centres median mm | p95 mm | frames solved | µs per frame |")
+print("|---|---|---:|---:|---:|---:|")
+for _, item in ipairs({ { "nominal", nominal }, { "calibrated", calibrated },
+  { "true", truth } }) do
+  for _, solver in ipairs(SOLVERS) do
+    local med, p95, solved, us = score(solver[2], item[2])
+    print(("| %s | %s | %.2f | %.2f | %d | %.0f |"):format(item[1], solver[1], med, p95, solved,
+      us))
+  end
+end
