@@ -37,6 +37,8 @@ local ROTATIONS = cube.ROTATIONS
 
 local M = {}
 
+compat.interpret_module()
+
 --- A block more than this many times its tags' size is taken for a mix of units (metres and
 -- millimetres), and refused.
 M.MAX_RATIO = 100

@@ -22,6 +22,8 @@ local corners = model.corners
 
 local M = {}
 
+require("tagpose.core.compat").interpret_module()
+
 --- Tags make one block while the joint fit's squared error exceeds the sum of their own
 -- single-tag fits' by at most `MERGE_FLOOR` px² per extra tag...
 M.MERGE_FLOOR = 1

@@ -30,6 +30,8 @@ local IDENTITY = cube.ROTATIONS[1]
 
 local M = {}
 
+require("tagpose.core.compat").interpret_module()
+
 --- Floor of the corner noise variance estimate (px²).
 M.NOISE_FLOOR = 0.01
 --- When tracking, the noise estimate carries the earlier frames' evidence with this weight per

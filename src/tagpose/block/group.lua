@@ -27,6 +27,8 @@ local t_mul = rotation.transpose_multiply
 
 local M = {}
 
+require("tagpose.core.compat").interpret_module()
+
 --- Grouping gate across the line of sight: implied centres closer than this (× block_size).
 M.PERP_GATE = 0.3
 --- Grouping gate along the line of sight (× block_size), where a single tag's depth is poor...

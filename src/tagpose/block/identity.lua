@@ -20,6 +20,8 @@ local t_mul = rotation.transpose_multiply
 
 local M = {}
 
+compat.interpret_module()
+
 --- Tracking gate: a block is the previous frame's block when their centres are closer than
 -- this (× block_size).
 M.TRACK_GATE = 0.75

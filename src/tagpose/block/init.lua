@@ -43,6 +43,8 @@ local result = require("tagpose.block.result")
 
 local M = {}
 
+compat.interpret_module()
+
 local function arg_error(n, message)
   args.raise(n, "solve", message, 3)
 end

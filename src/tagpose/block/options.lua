@@ -21,6 +21,8 @@ local NORMALS = cube.NORMALS
 
 local M = {}
 
+compat.interpret_module()
+
 --- Default standard deviation (radians) of a block's tilt from `options.up`.
 M.UP_TOLERANCE = rad(2)
 --- Default bound on the linearisations of one joint fit.

@@ -19,6 +19,8 @@ local mul, t_mul = rotation.multiply, rotation.transpose_multiply
 
 local M = {}
 
+compat.interpret_module()
+
 --- Two blocks whose centres are closer than this (× block_size) are one cube: the later found
 -- (fewer faces, or a larger error) is dropped and its tags reported in `skipped`.
 M.OVERLAP = 0.5

@@ -13,6 +13,8 @@ local sqrt, abs, huge = math.sqrt, math.abs, math.huge
 
 local M = {}
 
+require("tagpose.core.compat").interpret_module()
+
 --- Default `floor_tolerance` with `floor = "auto"`, × block_size: about how well one block
 -- seen with two faces shows the floor (its centre to ~0.7 mm, mostly along the line of sight,
 -- for the lab's blocks and camera).

@@ -19,6 +19,8 @@ local huge = math.huge
 
 local M = {}
 
+compat.interpret_module()
+
 --- Joint fits a frame may spend: this many per detection, and `FIT_BASE` more. A frame of a few
 -- blocks needs about one per detection (at most 8 for 7 tags on the dev set); a pile of
 -- hundreds of tags at one place could otherwise refit its hypotheses after every block it

@@ -27,6 +27,8 @@ local huge = math.huge
 
 local M = {}
 
+require("tagpose.core.compat").interpret_module()
+
 --- σ² (px²) of a frame's block covariances and confidences; also sets `fr.ellipsoid`, the
 -- factor κ on the covariances (`tagpose.uncertainty.noise`).
 -- @tparam table fr the frame record (`tagpose.block.frame`)

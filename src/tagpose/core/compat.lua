@@ -58,6 +58,14 @@ function M.interpret(f)
   return f
 end
 
+--- Leave a whole module to LuaJIT's interpreter (a no-op elsewhere): called at a module's top
+-- level, every function the module defines runs interpreted. For modules whose code branches
+-- so much that LuaJIT's traces of it fill the machine-code area over and over (each time all
+-- of them are thrown away and compiled again); the kernels they call compile as before.
+function M.interpret_module()
+  if M.jit then rawget(_G, "jit").off(debug.getinfo(2, "f").func, true) end
+end
+
 --- True when `v` is a number that is neither NaN nor ±infinity.
 -- @tparam any v
 -- @treturn boolean
