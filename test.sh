@@ -10,9 +10,10 @@ set -u
 cd "$(dirname "$0")" || exit 1
 
 VMS=${*:-"lua5.1 lua5.2 lua5.3 lua5.4 luajit"}
-# libxml2-utils: xmllint checks the plots; librsvg2-bin: rsvg-convert renders them; lua-ldoc
+# liblua5.4-dev: LuaRocks builds for Lua 5.4 with it (the README's install); libxml2-utils:
+# xmllint checks the plots; librsvg2-bin: rsvg-convert renders them; lua-ldoc
 # and lua-discount (its Markdown): the API reference
-PACKAGES="lua5.1 lua5.2 lua5.3 lua5.4 luajit lua-busted lua-check luarocks libxml2-utils
+PACKAGES="lua5.1 lua5.2 lua5.3 lua5.4 liblua5.4-dev luajit lua-busted lua-check luarocks libxml2-utils
   librsvg2-bin lua-ldoc lua-discount"
 
 missing=""
@@ -39,9 +40,9 @@ fail() { failed=$((failed + $1)); }
 echo "== luacheck"
 if luacheck --no-color -q .; then pass 1; else fail 1; fi
 
-for vm in $VMS; do
-  echo "== specs on $vm"
-  out=$(busted --lua="$vm" -o TAP 2>&1)
+# TAP lines of a busted run: passes and failures added to the totals (failures shown)
+tally() {
+  local name=$1 out=$2
   ok=$(printf '%s\n' "$out" | grep -c '^ok ')
   nok=$(printf '%s\n' "$out" | grep -c '^not ok ')
   if [ "$ok" -eq 0 ] && [ "$nok" -eq 0 ]; then
@@ -50,10 +51,21 @@ for vm in $VMS; do
   elif [ "$nok" -gt 0 ]; then
     printf '%s\n' "$out" | grep -A 12 '^not ok'
   fi
-  echo "$vm: $ok passed, $nok failed"
+  echo "$name: $ok passed, $nok failed"
   pass "$ok"
   fail "$nok"
+}
+
+for vm in $VMS; do
+  echo "== specs on $vm"
+  out=$(busted --lua="$vm" -o TAP 2>&1)
+  tally "$vm" "$out"
 done
+
+# every command the README and docs/ show, once (each names its Lua: lua5.4, luajit)
+echo "== the commands of the README and docs/"
+out=$(busted --lua=lua5.4 --tags=docs --exclude-tags=none -o TAP 2>&1)
+tally "docs" "$out"
 
 echo "== ldoc builds the API reference without warnings"
 doc=$(mktemp -d)
@@ -76,22 +88,22 @@ for rockspec in rockspec/*.rockspec; do
   if luarocks lint "$rockspec"; then pass 1; else fail 1; fi
 done
 
-echo "== the rocks install into a fresh tree: the library loads, the replay command runs"
+echo "== the rocks install into a fresh tree as the README says: the library loads, the command runs"
 tree=$(mktemp -d)
-if luarocks --tree "$tree" make rockspec/tagpose-scm-1.rockspec >"$tree/make.log" 2>&1 \
-    && luarocks --tree "$tree" make rockspec/tagpose-tools-scm-1.rockspec >>"$tree/make.log" 2>&1
+if luarocks --lua-version 5.4 --tree "$tree" make rockspec/tagpose-scm-1.rockspec \
+      >"$tree/make.log" 2>&1 \
+    && luarocks --lua-version 5.4 --tree "$tree" make rockspec/tagpose-tools-scm-1.rockspec \
+      >>"$tree/make.log" 2>&1
 then
-  lv=$(luarocks config lua_version 2>/dev/null || echo 5.1)
   data=$(pwd)/examples/data
-  if (cd "$tree" && "lua$lv" -e "
-      package.path = '$tree/share/lua/$lv/?.lua;$tree/share/lua/$lv/?/init.lua'
+  if (cd "$tree" && eval "$(luarocks --lua-version 5.4 --tree "$tree" path)" && lua5.4 -e "
       local tagpose = require('tagpose')
       local src = debug.getinfo(tagpose.solve, 'S').source
       assert(src:sub(1, #'@$tree') == '@$tree', 'loaded from ' .. src)
       local pose = assert(tagpose.solve({{280, 280}, {360, 280}, {360, 200}, {280, 200}},
         {fx = 883.98, fy = 883.98, cx = 319.5, cy = 239.5}, 0.024))
       print('installed copy loads from ' .. src:sub(2) .. ', z = ' .. pose.position.z)
-    ") && (cd "$tree" && "$tree/bin/tagpose-replay" "$data/approach.csv" | tail -n 1); then
+    " && "$tree/bin/tagpose-replay" "$data/approach.csv" --svg approach.svg | tail -n 1); then
     pass 1
   else
     fail 1
