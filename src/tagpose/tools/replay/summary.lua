@@ -1,6 +1,7 @@
---- What tagpose-replay says when it has replayed a log: the camera and method, the counts of
--- rows (solved, failed, malformed, repeated, out of order), the medians, the comparisons, the
--- files written; and the figure.
+--- What tagpose-replay says when it has replayed a log: the camera, the method, the time and
+-- σ, the counts of rows (solved, failed, malformed, repeated, out of order, smoothed), the
+-- mistakes of time, the medians and the noise, the comparisons, the files written; and the
+-- figure.
 --
 -- Every function takes `say(fmt, ...)`, which writes one formatted line, and the replay's
 -- record of `tagpose.tools.replay.frames`.
@@ -79,9 +80,25 @@ function M.head(say, run, source)
   if info.ignored and #info.ignored > 0 then
     say("  (not read from %s: %s)", source.path, concat(info.ignored, ", "))
   end
-  say("  method %s, %s", opt.method or "refined", opt.max_gap
-    and ("tracking each tag from its pose up to %s frame%s before"):format(number(opt.max_gap),
-      opt.max_gap == 1 and "" or "s") or "no tracking")
+  local tracker = run.tracker
+  say("  method %s, %s", opt.method or "refined", opt.track
+    and ("tracked by tagpose.tracker (a track ends unseen for more than %s s)%s"):format(
+      number(tracker.max_gap), opt.smooth and ", smoothed over the whole log" or "")
+    or "each row solved alone (no tracking; the tracker's tracks only tell tags apart)")
+  local times = run.clock
+  if times.has_time then
+    say("  time   the log's time column (s)%s", opt.fps_given and "; --fps not used" or "")
+  else
+    say("  time   frame / %s (frames per second, --fps; the log has no time column)",
+      number(opt.fps))
+  end
+  if opt.sigma then
+    say("  sigma  %s px (--sigma)", number(opt.sigma))
+  elseif opt.track then
+    say("  sigma  each track's running estimate from its residuals (no --sigma)")
+  else
+    say("  sigma  tagpose.solve's default, pooled with each row's residuals (no --sigma)")
+  end
 end
 
 local function list_reasons(say, t, what)
@@ -121,17 +138,38 @@ function M.rows(say, run)
     say("uncounted  %d rows of ids past the first %d of their frame: not checked for repeated"
       .. " keys", run.uncounted, frames.MAX_IDS)
   end
-  if run.track_count.forgotten > 0 then
-    say("forgotten  %d live tracks dropped past %d (the least recently seen): their tags' next"
-      .. " detections start new tracks", run.track_count.forgotten, frames.MAX_LIVE)
-  end
-  if run.untracked > 0 then
-    say("untracked  %d detections beyond %d tracks of one id in a frame: solved without a"
-      .. " prior, not drawn", run.untracked, frames.MAX_TRACKS)
-  end
   if run.order.rows > 0 then
-    say("order      %d rows come after a later frame (first at line %d): they get no prior,"
-      .. " and the plot and comparisons assume frame order", run.order.rows, run.order.first)
+    say("order      %d rows come after a later frame (first at line %d): the plot and the"
+      .. " comparisons assume frame order", run.order.rows, run.order.first)
+  end
+  M.time(say, run)
+  if run.smoothed then
+    say("smoothed   %d rows take the other pose of the planar ambiguity once the later frames"
+      .. " are seen", run.switched)
+  end
+end
+
+--- The lines on the frames' times: what looks like a mistake.
+-- @tparam function say
+-- @tparam table run
+function M.time(say, run)
+  local times = run.clock
+  if times.restarts > 0 then
+    say("restarts   %d times the time went back (first at line %d): the tracker ended every"
+      .. " track there", times.restarts, times.first_restart)
+  end
+  if times.cadence > 0 then
+    say("time       %d frames step far beyond the max gap at a steady cadence (first at line"
+      .. " %d): milliseconds or frame numbers where seconds belong?", times.cadence,
+      times.first_cadence)
+  end
+  if times.fractional > 0 then
+    say("frames     %d rows have a fractional frame number (first at line %d): seconds in the"
+      .. " frame column?", times.fractional, times.first_fractional)
+  end
+  if times.mixed > 0 then
+    say("time       %d rows carry a time other than their frame's first row's (first at line"
+      .. " %d): the first is used", times.mixed, times.first_mixed)
   end
 end
 
@@ -158,6 +196,9 @@ function M.medians(say, run)
   end
   say("median reprojection error %.3g px, median solveQuad iterations %s", med_error,
     number(med_iterations))
+  say("noise      sigma %.3g px from the residuals of the %d solved rows (the median of the"
+    .. " poses' squared residuals, 2 degrees of freedom a tag)%s", frames.sigma(run),
+    run.solved, run.opt.sigma and "" or "; --sigma S fixes σ")
 end
 
 --- The lines on each compared log.
