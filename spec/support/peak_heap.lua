@@ -1,7 +1,9 @@
--- Run tagpose-replay in this process and print, on standard error, the largest Lua heap
--- (KiB, collectgarbage("count")) seen while it solved: sampled every 64 rows solved, by
--- wrapping tagpose.solve (a replay without --track) and tagpose.tracker's update (with it),
--- which works the same on every VM (a count hook does not run in LuaJIT's compiled code).
+-- Run tagpose-replay in this process and print, on standard error, the largest live Lua heap
+-- (KiB, collectgarbage("count") after a full collection) seen while it solved: sampled every
+-- 64 rows solved, by wrapping tagpose.solve (a replay without --track) and tagpose.tracker's
+-- update (with it), which works the same on every VM (a count hook does not run in LuaJIT's
+-- compiled code). The live heap, not the heap: what the garbage adds between collections
+-- depends on when the collector runs, and its largest sample grows with the samples taken.
 --
 --   lua spec/support/peak_heap.lua LOG.csv [replay options] >/dev/null
 package.path = "./src/?.lua;./src/?/init.lua;" .. package.path
@@ -12,6 +14,8 @@ local function count(n)
   local before = calls
   calls = calls + n
   if math.floor(calls / 64) > math.floor(before / 64) then
+    collectgarbage()
+    collectgarbage()
     local kb = collectgarbage("count")
     if kb > peak then peak = kb end
   end

@@ -21,6 +21,11 @@ local MAX_GROUP, MAX_IDS = frames.MAX_GROUP, frames.MAX_IDS
 
 local M = {}
 
+--- Rotations more than this many degrees apart are counted (`apart`): a row whose rotation is
+-- this far from the truth is on the wrong branch of the planar ambiguity (as
+-- `examples/accuracy.lua` counts its flips).
+M.APART = 30
+
 -- the rotation between two quaternions, degrees
 local function rotation_difference(a, b)
   local na = sqrt(a.w ^ 2 + a.x ^ 2 + a.y ^ 2 + a.z ^ 2)
@@ -42,7 +47,9 @@ Compare.__index = Compare
 -- @tparam string path
 -- @tparam[opt] table recorder the figure's `plot.recorder`, to draw the log on
 -- @treturn table the log: `path`, `matched` (rows matched), `dt` and `dr` (histograms of the
---   position and rotation differences), `problems` (a tally of its malformed rows),
+--   position and rotation differences), `apart` (rows matched whose rotations are more than
+--   `APART` degrees apart: against a truth file, the wrong rows), `problems` (a tally of its
+--   malformed rows),
 --   `out_of_order`, `first_out_of_order`; `match(frame, solved[, group])`, `finish()`
 -- @return nil, string when it cannot be read
 function M.open(path, recorder)
@@ -52,6 +59,7 @@ function M.open(path, recorder)
   local self = setmetatable({ path = path, reader = reader, source = recorder and
     recorder:source(label), recorder = recorder, last_slot = {}, slotted = 0,
     problems = stats.tally(), dt = stats.histogram(), dr = stats.histogram(), matched = 0,
+    apart = 0,
     frame = nil, rows = {}, last = nil, out_of_order = 0, first_out_of_order = nil,
     unmatched_frame = 0, lookahead = nil, done = false }, Compare)
   return self
@@ -186,7 +194,9 @@ function Compare:match(frame, solved, group)
       rows[i].partner, taken[solved[k]] = solved[k], true
       self.matched = self.matched + 1
       add(self.dt, p.d)
-      add(self.dr, rotation_difference(solved[k].pose.quaternion, rows[i].pose.quaternion))
+      local dr = rotation_difference(solved[k].pose.quaternion, rows[i].pose.quaternion)
+      add(self.dr, dr)
+      if dr > M.APART then self.apart = self.apart + 1 end
     end
   end
   if self.recorder then self:draw_frame(rows, group or solved, taken) end

@@ -11,6 +11,7 @@ local plot = require("tagpose.tools.plot")
 local stats = require("tagpose.tools.replay.stats")
 local command = require("tagpose.tools.replay.command")
 local frames = require("tagpose.tools.replay.frames")
+local compare = require("tagpose.tools.replay.compare")
 
 local ceil, min = math.ceil, math.min
 local concat = table.concat
@@ -155,8 +156,8 @@ end
 function M.time(say, run)
   local times = run.clock
   if times.restarts > 0 then
-    say("restarts   %d times the time went back (first at line %d): the tracker ended every"
-      .. " track there", times.restarts, times.first_restart)
+    say("restarts   %d time%s the time went back (first at line %d): the tracker ended every"
+      .. " track there", times.restarts, times.restarts == 1 and "" or "s", times.first_restart)
   end
   if times.cadence > 0 then
     say("time       %d frames step far beyond the max gap at a steady cadence (first at line"
@@ -196,9 +197,8 @@ function M.medians(say, run)
   end
   say("median reprojection error %.3g px, median solveQuad iterations %s", med_error,
     number(med_iterations))
-  say("noise      sigma %.3g px from the residuals of the %d solved rows (the median of the"
-    .. " poses' squared residuals, 2 degrees of freedom a tag)%s", frames.sigma(run),
-    run.solved, run.opt.sigma and "" or "; --sigma S fixes σ")
+  say("noise      sigma %.3g px, from the median squared residual of the %d solved rows (2"
+    .. " degrees of freedom a tag)", frames.sigma(run), run.solved)
 end
 
 --- The lines on each compared log.
@@ -210,8 +210,10 @@ function M.comparisons(say, run, unit)
     if c.matched > 0 then
       local lu = unit == "tag-size units" and "" or " " .. unit
       say("vs %s: %d rows matched; position difference median %.3g%s, p95 %.3g%s; rotation"
-        .. " median %.3g deg, p95 %.3g deg", c.path, c.matched, quantile(c.dt, 0.5), lu,
-        quantile(c.dt, 0.95), lu, quantile(c.dr, 0.5), quantile(c.dr, 0.95))
+        .. " median %.3g deg, p95 %.3g deg; %d row%s (%.2f %%) more than %s deg apart",
+        c.path, c.matched, quantile(c.dt, 0.5), lu, quantile(c.dt, 0.95), lu,
+        quantile(c.dr, 0.5), quantile(c.dr, 0.95), c.apart, c.apart == 1 and "" or "s",
+        100 * c.apart / c.matched, number(compare.APART))
     else
       say("vs %s: no solved row has a pose there with the same frame and tag", c.path)
     end
