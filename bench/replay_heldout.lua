@@ -10,7 +10,8 @@
 -- sequences are made, and replays them and bench/dev/sequences with the Lua running this
 -- script. Prints per set the rows, the wrong rows of --track and of --smooth, and the 95 %
 -- coverage of the pose log's sx, sy, sz (|x - truth| <= 1.96 sx, over the rows on the right
--- branch); then the pooled figures of the draws, and of the draws and the dev set.
+-- branch); then the pooled figures of the draws, and of the draws and the dev set. Everything
+-- it writes is in OUT_DIR.
 -- Run from the repository's root.
 
 package.path = "./src/?.lua;./src/?/init.lua;" .. package.path
@@ -45,9 +46,10 @@ local function sh(command)
   return text
 end
 
--- the replay of a set in a mode: rows matched, rows apart, and the pose log's coverage
+-- the replay of a set in a mode: rows matched, rows apart, and the pose log's coverage (the
+-- pose log written in OUT_DIR, never beside a data set of the repository)
 local function replay(set, mode)
-  local out = set .. "/" .. mode .. ".csv"
+  local out = ("%s/%s-%s.csv"):format(dir, set:gsub("/", "_"), mode)
   local text = sh(table.concat({ quote(lua), "bin/tagpose-replay", quote(set .. "/corners.csv"),
     "--" .. mode, "--compare", quote(set .. "/truth.csv"), "--out", quote(out) }, " "))
   local matched, apart = text:match(": (%d+) rows matched; .-; (%d+) rows %([%d.]+ %%%) more")
