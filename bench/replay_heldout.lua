@@ -49,7 +49,7 @@ end
 -- the replay of a set in a mode: rows matched, rows apart, and the pose log's coverage (the
 -- pose log written in OUT_DIR, never beside a data set of the repository)
 local function replay(set, mode)
-  local out = ("%s/%s-%s.csv"):format(dir, set:gsub("/", "_"), mode)
+  local out = ("%s/%s-%s.csv"):format(dir, (set:match("[^/]+/[^/]+$"):gsub("/", "_")), mode)
   local text = sh(table.concat({ quote(lua), "bin/tagpose-replay", quote(set .. "/corners.csv"),
     "--" .. mode, "--compare", quote(set .. "/truth.csv"), "--out", quote(out) }, " "))
   local matched, apart = text:match(": (%d+) rows matched; .-; (%d+) rows %([%d.]+ %%%) more")
