@@ -4,9 +4,10 @@
 --
 --   lua5.4 bench/make_long_log.lua DIR [ROWS [TAGS]] [--same-id]
 --
--- writes DIR/corners.csv and DIR/camera.lua. Then, for instance:
+-- writes DIR/corners.csv and DIR/camera.lua (DIR is made if it does not exist). Then, for
+-- instance:
 --
---   /usr/bin/time -v lua5.4 bin/tagpose-replay DIR/corners.csv --track --svg DIR/plot.svg
+--   /usr/bin/time -v lua5.4 bin/tagpose-replay DIR/corners.csv --smooth --svg DIR/plot.svg
 --
 -- (peak memory: "Maximum resident set size").
 
@@ -25,6 +26,14 @@ end
 
 local sin, cos, sqrt, log, pi = math.sin, math.cos, math.sqrt, math.log, math.pi
 local fx, fy, cx, cy, size = 600, 600, 319.5, 239.5, 0.05
+
+-- the folder, made as `mkdir -p` makes it (the name quoted for the shell)
+local quoted = "'" .. dir:gsub("'", "'\\''") .. "'"
+local made = os.execute("mkdir -p " .. quoted)
+if made ~= true and made ~= 0 then
+  io.stderr:write("make_long_log: cannot make the folder " .. dir .. "\n")
+  os.exit(1)
+end
 
 local f = assert(io.open(dir .. "/camera.lua", "w"))
 f:write(("return { fx = %g, fy = %g, cx = %g, cy = %g, width = 640, height = 480,"

@@ -18,6 +18,7 @@ local PAGES = { "README.md" }
 for name in io.popen("ls docs/*.md"):lines() do PAGES[#PAGES + 1] = name end
 
 local COMMAND = { "lua5%.%d ", "luajit ", "lua ", "bin/", "bench/", "%./", "/usr/bin/python3 ",
+  "/usr/bin/time ",
   "luarocks ", "lua_modules/", "valgrind ", "ldoc ", "rsvg%-convert ", "eval " }
 
 local function is_command(line)
@@ -123,6 +124,9 @@ local function smaller(cmd)
   cmd = cmd:gsub("(bench/real_noise%.lua) %-%-seeds %d+", "%1 --seeds 1 --sigma 2"
     .. " bench/realdata/builderbot-exp-11")
   cmd = cmd:gsub("(bench/bounds%.lua) all (%S+)", "%1 board 3 4")
+  cmd = cmd:gsub("(bench/replay_heldout%.lua %S+)$", "%1 1 2 40")
+  -- (the peak memory GNU time measures is the figure's: the command is the same without it)
+  cmd = cmd:gsub("^/usr/bin/time %-v ", "")
   return cmd
 end
 

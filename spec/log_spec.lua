@@ -48,6 +48,32 @@ describe("tagpose.tools.log", function()
       }, problems)
     end)
 
+    it("reads a time column in seconds, and refuses a row whose time is not one", function()
+      local path = tmpfile("frame,tag,u1,v1,u2,v2,u3,v3,u4,v4,time\n"
+        .. "1,0,1,2,3,4,5,6,7,8,0.0333\n"
+        .. "2,0,1,2,3,4,5,6,7,8,\n"
+        .. "3,0,1,2,3,4,5,6,7,8,soon\n"
+        .. "4,0,1,2,3,4,5,6,7,8,inf\n")
+      local reader = assert(log.corner_reader(path))
+      assert.is_true(reader.has_time)
+      reader:close()
+      local rows, problems = log.read_corners(path)
+      os.remove(path)
+      assert.equal(1, #rows)
+      assert.equal(0.0333, rows[1].time)
+      assert.same({
+        { line = 3, reason = "column time is empty" },
+        { line = 4, reason = "column time is not a number" },
+        { line = 5, reason = "column time is not finite (inf)" },
+      }, problems)
+      path = tmpfile("frame,tag,u1,v1,u2,v2,u3,v3,u4,v4\n1,0,1,2,3,4,5,6,7,8\n")
+      reader = assert(log.corner_reader(path))
+      assert.is_false(reader.has_time)
+      assert.is_nil(reader:read().time)
+      reader:close()
+      os.remove(path)
+    end)
+
     it("refuses a header without the corner columns", function()
       local path = tmpfile("frame,tag,x,y\n1,2,3,4\n")
       local rows, err = log.read_corners(path)
@@ -152,6 +178,13 @@ describe("tagpose.tools.log", function()
         { line = 4, reason = "column qw is not a number" },
         { line = 5, reason = "column frame is empty" },
       }, problems)
+      -- a truth file's track column (the physical tag of a row)
+      path = tmpfile("frame,tag,x,y,z,qw,qx,qy,qz,track\n0,0,0.1,0.2,0.3,1,0,0,0,2\n"
+        .. "0,0,,,,,,,,b\n0,0,0.1,0.2,0.3,1,0,0,0,\n")
+      rows = assert(log.read_poses(path))
+      os.remove(path)
+      assert.same({ 2, "b" }, { rows[1].track, rows[2].track })
+      assert.is_nil(rows[3].track)
       path = tmpfile("frame,tag,x,y,z\n")
       local none, err = log.read_poses(path)
       os.remove(path)

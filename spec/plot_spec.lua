@@ -318,15 +318,18 @@ describe("tagpose.tools.plot", function()
         'class="marker"'))
     end)
 
-    it("keeps tags that share an id in a frame apart, by position", function()
+    it("keeps tags that share an id apart by the entries' tracks", function()
       local e = {}
       for k = 0, 30 do
-        -- two tags, both id 0, swapping their order in the log every frame
-        local a = make_pose(-0.1, 0, 0.5 + 0.001 * k, 1, 0, 0, 0)
-        local b = make_pose(0.1, 0, 0.6 - 0.001 * k, 1, 0, 0, 0)
+        -- two tags, both id 0, swapping their order in the log every frame; their tracks
+        -- (as tagpose.tracker or a truth file's track column gives them) are 11 and 12
+        local a = { frame = k, tag = 0, track = 11, pose = make_pose(-0.1, 0, 0.5 + 0.001 * k, 1,
+          0, 0, 0) }
+        local b = { frame = k, tag = 0, track = 12, pose = make_pose(0.1, 0, 0.6 - 0.001 * k, 1,
+          0, 0, 0) }
         if k % 2 == 0 then a, b = b, a end
-        e[#e + 1] = { frame = k, tag = 0, pose = a }
-        e[#e + 1] = { frame = k, tag = 0, pose = b }
+        e[#e + 1] = a
+        e[#e + 1] = b
       end
       local svg, shown = plot.poses({ { label = "twins", entries = e } })
       assert.equal(14, shown.series)

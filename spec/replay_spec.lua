@@ -81,7 +81,7 @@ describe("bin/tagpose-replay", function()
     assert.truthy(figure:find('data-panels="7" data-series="28"', 1, true))
   end)
 
-  it("tracks each tag from its previous frame with --track or --max-gap", function()
+  it("tracks each tag with tagpose.tracker with --track or --max-gap", function()
     local truth = assert(log.read_poses(TRUTH))
     -- the 95th percentile of the rotation error, and the summary
     local function p95(...)
@@ -94,18 +94,18 @@ describe("bin/tagpose-replay", function()
       return dr[math.floor(0.95 * #dr)], text
     end
     local untracked, text = p95()
-    assert.truthy(text:find("method refined, no tracking", 1, true), text)
+    assert.truthy(text:find("method refined, each row solved alone", 1, true), text)
     local tracked
     tracked, text = p95("--track")
-    assert.truthy(text:find("tracking each tag from its pose up to 1 frame before", 1, true),
-      text)
+    assert.truthy(text:find("tracked by tagpose.tracker (a track ends unseen for more than 0.5"
+      .. " s)", 1, true), text)
     -- far, small tags flip between the two solutions of the planar ambiguity: tracking
     -- keeps most of them on the right one
     assert.is_true(tracked < 0.5 * untracked, ("p95 %.3g deg tracked, %.3g untracked")
       :format(tracked, untracked))
     local gap
-    gap, text = p95("--max-gap", "3")
-    assert.truthy(text:find("up to 3 frames before", 1, true), text)
+    gap, text = p95("--max-gap", "0.1s")
+    assert.truthy(text:find("unseen for more than 0.1 s", 1, true), text)
     assert.is_true(gap < 0.5 * untracked)
   end)
 
@@ -176,7 +176,15 @@ describe("bin/tagpose-replay", function()
     text, status = run.script("bin/tagpose-replay", LOG, "--bogus")
     assert.equal(2, status)
     assert.truthy(text:find("replay: unknown option --bogus", 1, true), text)
+    -- a missing log is named as such before its camera file is looked for
     text, status = run.script("bin/tagpose-replay", "/nonexistent/corners.csv")
+    assert.equal(1, status)
+    assert.truthy(text:find("replay: log: /nonexistent/corners.csv", 1, true), text)
+    local dir = tmp("nocamera")
+    run.run("mkdir " .. run.quote(dir))
+    run.write(dir .. "/corners.csv", MIXED)
+    text, status = run.script("bin/tagpose-replay", dir .. "/corners.csv")
+    run.run("rm -r " .. run.quote(dir))
     assert.equal(2, status)
     assert.truthy(text:find("no camera file", 1, true), text)
     text, status = run.script("bin/tagpose-replay", "/nonexistent/corners.csv", "--camera",
@@ -351,38 +359,35 @@ describe("bin/tagpose-replay on the inputs users have", function()
       local dir = tmp("ids" .. rows)
       assert.equal(0, select(2, run.run("mkdir " .. run.quote(dir))))
       assert.equal(0, select(2, run.script("bench/bounds.lua", "ids", dir, rows, 10)))
-      -- the bound on live tracks lowered to 100, so that both logs are well past it
+      -- the bound on the plot's lines lowered to 100, so that both logs are well past it
       local out, status = run.run(run.quote(run.lua()) .. " -e 'package.path = \"./src/?.lua;"
-        .. "./src/?/init.lua;\" .. package.path; require(\"tagpose.tools.replay.frames\")"
-        .. ".MAX_LIVE = 100' spec/support/peak_heap.lua " .. run.quote(dir .. "/corners.csv")
+        .. "./src/?/init.lua;\" .. package.path; require(\"tagpose.tools.replay.slots\")"
+        .. ".MAX = 100' spec/support/peak_heap.lua " .. run.quote(dir .. "/corners.csv")
         .. " --track --svg " .. run.quote(dir .. "/p.svg") .. " --compare "
         .. run.quote(dir .. "/truth.csv") .. " 2>&1 >/dev/null")
       run.run("rm -r " .. run.quote(dir))
       assert.equal(0, status, out)
       peaks[#peaks + 1] = tonumber(out:match("peak heap (%d+) KiB"))
     end
-    -- each id's track, its pose and its compared track kept cost about 4.4 KiB an id (17 MB
-    -- more here); the tracks of ended ids are swept out, the live ones kept to MAX_LIVE
+    -- each id's track, its filter's state and its plot line kept cost several KiB an id; the
+    -- tracker drops the tracks of ended ids (max_gap), the plot's lines are swept out
     assert.is_true(peaks[2] < peaks[1] + 3072, ("peak heap %d KiB for 1000 ids, %d KiB for"
       .. " 5000"):format(peaks[1], peaks[2]))
   end)
 
-  it("drops the least recently seen live tracks past MAX_LIVE, and says so", function()
+  it("solves and writes every row of a frame of 300 distinct ids", function()
     local dir = tmp("frame")
     assert.equal(0, select(2, run.run("mkdir " .. run.quote(dir))))
     assert.equal(0, select(2, run.script("bench/bounds.lua", "ids", dir, 300, 300)))
-    local out, status = run.run(run.quote(run.lua()) .. " -e 'package.path = \"./src/?.lua;"
-      .. "./src/?/init.lua;\" .. package.path; require(\"tagpose.tools.replay.frames\")"
-      .. ".MAX_LIVE = 50' bin/tagpose-replay " .. run.quote(dir .. "/corners.csv")
-      .. " --track --out " .. run.quote(dir .. "/p.csv") .. " 2>&1")
+    local out, status = run.script("bin/tagpose-replay", dir .. "/corners.csv", "--track",
+      "--out", dir .. "/p.csv", "--svg", dir .. "/p.svg")
     local poses = log.read_poses(dir .. "/p.csv")
     run.run("rm -r " .. run.quote(dir))
     assert.equal(0, status, out)
     assert.matches("solved     300\n", out)
-    -- 300 live tracks in one frame, swept down to 50 each time more than 50 were started
-    -- since the last sweep (at 51, 102, 153, 204 and 255): 50 + 45 kept, 205 dropped
-    assert.matches("forgotten  205 live tracks dropped past 50", out)
     assert.equal(300, #poses)
+    -- the figure keeps its bounded series (plot.MAX_SERIES), and says what it left out
+    assert.matches("points of tracks past the first 256 not drawn", out)
   end)
 end)
 

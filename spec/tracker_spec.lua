@@ -154,6 +154,65 @@ describe("tagpose.tracker", function()
     end)
   end)
 
+  describe("assign()", function()
+    -- three id-0 tags drifting past each other in a shuffled order; the third leaves for
+    -- 0.4 s (beyond max_gap: a new track), and at frame 30 the time goes back (all restart)
+    local function frames()
+      local out = {}
+      for k = 0, 44 do
+        local time = k < 30 and k / 30 or (k - 35) / 30
+        local list = {}
+        for j, u in ipairs({ 150 + 4 * k, 450 - 4 * k, 300 }) do
+          if not (j == 3 and k >= 10 and k < 22) then
+            local r, t = pose_at(u, 120 + 110 * j, 40, 0.5, j)
+            list[#list + 1] = detection(0, r, t)
+          end
+        end
+        if k % 2 == 1 then list[1], list[#list] = list[#list], list[1] end
+        out[#out + 1] = { list = list, time = time }
+      end
+      return out
+    end
+
+    it("gives the tracks update gives, without solving", function()
+      local solving = tagpose.tracker.new(camera, SIZE, { max_gap = 0.3 })
+      local assigning = tagpose.tracker.new(camera, SIZE, { max_gap = 0.3 })
+      local numbers = {}
+      for k, f in ipairs(frames()) do
+        local a, b = solving:update(f.list, f.time), assigning:assign(f.list, f.time)
+        assert.equal(#a, #b)
+        assert.equal(a.restarted, b.restarted, "frame " .. k)
+        for i = 1, #a do
+          assert.is_table(a[i].pose)
+          assert.is_nil(b[i].pose)
+          assert.is_nil(b[i].reason)
+          assert.same({ a[i].track, a[i].new }, { b[i].track, b[i].new }, "frame " .. k)
+          numbers[a[i].track] = true
+        end
+      end
+      -- 3 tracks, the third's again after its gap, then 3 more after the restart
+      local count = 0
+      for _ in pairs(numbers) do count = count + 1 end
+      assert.equal(7, count)
+    end)
+
+    it("leaves a track that update continues with its pose, and checks its arguments", function()
+      local tr = tagpose.tracker.new(camera, SIZE)
+      local r, t = pose_at(300, 240, 40, 0.5, 0.3)
+      local first = tr:assign({ detection(2, r, t) }, 0)[1]
+      local next = tr:update({ detection(2, r, t) }, 1 / 30)[1]
+      assert.equal(first.track, next.track)
+      assert.vector_near(t, next.pose.position, 1e-9)
+      assert.equal("tracker: no tag size for id 2", tagpose.tracker.new(camera, { [1] = SIZE })
+        :assign({ detection(2, r, t) }, 0)[1].reason)
+      assert.has_error(function() tr:assign(detection(2, r, t), 1) end,
+        "bad argument #1 to 'assign' (array of detections expected, got one detection "
+          .. "{id =, corners =} (pass {detection}))")
+      assert.has_error(function() tr:assign({}, math.huge) end,
+        "bad argument #2 to 'assign' (finite number expected for time, got number inf)")
+    end)
+  end)
+
   describe("smooth()", function()
     -- a small tag coming closer and tilting more: its first frames say little about the
     -- branch, the later ones much

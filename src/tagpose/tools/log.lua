@@ -1,10 +1,10 @@
 --- Corner logs, pose logs and camera files (docs/conventions.md), read row by row.
 --
 -- * Corner log: CSV with a header naming at least `frame,tag,u1,v1,u2,v2,u3,v3,u4,v4`
---   (further columns are kept by name and otherwise ignored), one row per detection.
--- * Pose log: CSV `frame,tag,x,y,z,qw,qx,qy,qz,error,iterations`.
--- * Camera file: see `tagpose.calibration` (Lua camera files are read as data, ROS and OpenCV
---   YAML as they are written).
+--   (further columns are kept by name and otherwise ignored), one row per detection;
+--   optionally `time`, the frame's time in seconds (then read as the frame and tag are).
+-- * Pose log: CSV `frame,tag,x,y,z,qw,qx,qy,qz,error,iterations,confidence,sx,...,srz`.
+-- * Camera file: see `tagpose.calibration` (a Lua camera file is read as data).
 --
 -- The CSV is read as RFC 4180 writes it and as spreadsheets save it, one row a line: fields
 -- separated by commas, a field in double quotes may hold commas and `""` for a quote but not
@@ -150,8 +150,10 @@ Corners.__index = Corners
 --- Open a corner log, to read it detection by detection.
 -- @tparam string|file source a path or an open file
 -- @treturn table the reader, with `read()` → a detection `{frame =, tag =, corners = {{u, v},
---   ...}, line =, fields =}` (`fields`: the whole row by column name, numbers as numbers),
---   `false, line, reason` for a malformed row, `nil` at the end; and `close()`
+--   ...}, time =, line =, fields =}` (`time` when the log has a `time` column: a row whose
+--   time is empty or not a finite number is malformed; `fields`: the whole row by column
+--   name, numbers as numbers), `false, line, reason` for a malformed row, `nil` at the end;
+--   `has_time` (the log has a `time` column), and `close()`
 -- @return nil, string when the file cannot be read or its header lacks a column
 -- @usage
 -- local reader = assert(log.corner_reader("corners.csv"))
@@ -166,7 +168,8 @@ function M.corner_reader(source)
   if not csv then return nil, err end
   local index = {}
   for k, name in ipairs(M.CORNER_COLUMNS) do index[k] = csv.column[name] end
-  return setmetatable({ csv = csv, index = index, header = csv.header }, Corners)
+  return setmetatable({ csv = csv, index = index, header = csv.header,
+    time_column = csv.column.time, has_time = csv.column.time ~= nil }, Corners)
 end
 
 function Corners:read()
@@ -180,6 +183,11 @@ function Corners:read()
   local tag
   tag, why = key_field(fields, index[2], "tag", named.tag)
   if tag == nil then return false, line, why end
+  local time
+  if self.time_column then
+    time, why = key_field(fields, self.time_column, "time", named.time)
+    if time == nil then return false, line, why end
+  end
   local c = {}
   for k = 3, 10 do
     local name = M.CORNER_COLUMNS[k]
@@ -188,7 +196,7 @@ function Corners:read()
     if type(n) ~= "number" then return false, line, "column " .. name .. " is not a number" end
     c[k - 2] = n
   end
-  return { frame = frame, tag = tag, line = line, fields = named,
+  return { frame = frame, tag = tag, line = line, fields = named, time = time,
     corners = { { c[1], c[2] }, { c[3], c[4] }, { c[5], c[6] }, { c[7], c[8] } } }
 end
 
@@ -236,10 +244,11 @@ Poses.__index = Poses
 -- row with some pose fields empty or not finite numbers, or without a finite frame and tag,
 -- is malformed.
 -- @tparam string|file source a path or an open file
--- @treturn table the reader, with `read()` → an entry `{frame =, tag =, line =, pose =}`
---   (`pose` shaped as a `tagpose.solve` result: `{position = {x, y, z}, quaternion = {w, x, y,
---   z}, error =, iterations =}`, the quaternion as written, or `nil`), `false, line, reason`
---   for a malformed row, `nil` at the end; and `close()`
+-- @treturn table the reader, with `read()` → an entry `{frame =, tag =, line =, pose =,
+--   track =}` (`pose` shaped as a `tagpose.solve` result: `{position = {x, y, z}, quaternion
+--   = {w, x, y, z}, error =, iterations =}`, the quaternion as written, or `nil`; `track` a
+--   `track` column's value, which tells apart the tags sharing an id as the data sets' truth
+--   files do), `false, line, reason` for a malformed row, `nil` at the end; and `close()`
 -- @return nil, string when the file cannot be read or lacks a column
 function M.pose_reader(source)
   local required = { "frame", "tag" }
@@ -249,7 +258,8 @@ function M.pose_reader(source)
   local index = {}
   for k, name in ipairs(required) do index[k] = csv.column[name] end
   return setmetatable({ csv = csv, index = index, required = required,
-    error_column = csv.column.error, iterations_column = csv.column.iterations }, Poses)
+    error_column = csv.column.error, iterations_column = csv.column.iterations,
+    track_column = csv.column.track }, Poses)
 end
 
 function Poses:read()
@@ -279,14 +289,16 @@ function Poses:read()
       v[k - 2] = n
     end
   end
+  local track = self.track_column and fields[self.track_column] or ""
+  track = track ~= "" and (number_of(track) or track) or nil
   if empty == #POSE_FIELDS then
-    return { frame = frame, tag = tag, line = line }
+    return { frame = frame, tag = tag, line = line, track = track }
   elseif empty > 0 then
     return false, line, bad
   end
   local e = self.error_column and number_of(fields[self.error_column])
   local it = self.iterations_column and number_of(fields[self.iterations_column])
-  return { frame = frame, tag = tag, line = line, pose = {
+  return { frame = frame, tag = tag, line = line, track = track, pose = {
     position = { x = v[1], y = v[2], z = v[3] },
     quaternion = { w = v[4], x = v[5], y = v[6], z = v[7] },
     error = e, iterations = it,
@@ -330,12 +342,14 @@ end
 -- @tparam number frame
 -- @tparam number tag
 -- @tparam[opt] table pose a `tagpose.solve` result
+-- @tparam[opt] number confidence written instead of the pose's (a smoother's)
 -- @treturn string
-function M.pose_line(frame, tag, pose)
+function M.pose_line(frame, tag, pose, confidence)
   if not pose then return num(frame) .. "," .. num(tag) .. ",,,,,,,,,,,,,,,," end
   local p, q, cov = pose.position, pose.quaternion, pose.covariance
   return concat({ num(frame), num(tag), num(p.x), num(p.y), num(p.z), num(q.w), num(q.x),
-    num(q.y), num(q.z), num(pose.error), num(pose.iterations), num(pose.confidence),
+    num(q.y), num(q.z), num(pose.error), num(pose.iterations),
+    num(confidence or pose.confidence),
     num(deviation(cov, 1)), num(deviation(cov, 2)), num(deviation(cov, 3)),
     num(deviation(cov, 4)), num(deviation(cov, 5)), num(deviation(cov, 6)) }, ",")
 end
@@ -348,9 +362,9 @@ Writer.__index = Writer
 -- onto it by `close`), so the old file stays as it was until the log is complete.
 -- @tparam string|file target a path (replaced by `close`) or an open file (left open, flushed
 --   by `close`)
--- @treturn table the writer, with `write(frame, tag, pose)` (a `nil` pose writes a failed
---   row), `close()` → the number of rows written, or `nil, string` when writing failed (the
---   path is then left as it was), and `abort()` (the path left as it was)
+-- @treturn table the writer, with `write(frame, tag, pose[, confidence])` (as `pose_line`),
+--   `close()` → the number of rows written, or `nil, string` when writing failed (the path
+--   is then left as it was), and `abort()` (the path left as it was)
 -- @return nil, string when the file cannot be written
 function M.pose_writer(target)
   local f, out = target, nil
@@ -377,9 +391,9 @@ function Writer:flush()
   self.pending = {}
 end
 
-function Writer:write(frame, tag, pose)
+function Writer:write(frame, tag, pose, confidence)
   local pending = self.pending
-  pending[#pending + 1] = M.pose_line(frame, tag, pose)
+  pending[#pending + 1] = M.pose_line(frame, tag, pose, confidence)
   self.n = self.n + 1
   if #pending >= 512 then self:flush() end
 end
@@ -424,8 +438,7 @@ function M.write_poses(target, entries)
   return writer:close()
 end
 
---- Read a camera file: `tagpose.calibration.read` (a Lua camera file as data, ROS or OpenCV
--- YAML).
+--- Read a camera file: `tagpose.calibration.read` (a Lua camera file as data, ROS, OpenCV).
 -- @tparam string path
 -- @treturn table the camera `{fx =, fy =, cx =, cy =, model =, distortion =}`
 -- @treturn table what else the file said (`tag_size`, `block_size`, `width`, `height`, ...)

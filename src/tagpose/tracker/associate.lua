@@ -61,6 +61,23 @@ local function gate(i, u, v, s, list, time, limit, np)
   return np
 end
 
+--- The centre and mean side of four corners (pixels): what a detection is gated by.
+-- @tparam {number,...} px the corners, flat (`u1, v1, ..., u4, v4`)
+-- @treturn number u
+-- @treturn number v
+-- @treturn number the mean of the four sides
+function M.centre_and_side(px)
+  local u, v, s = 0, 0, 0
+  for j = 1, 7, 2 do
+    local au, av = px[j], px[j + 1]
+    local k = j < 7 and j + 2 or 1
+    local bu, bv = px[k], px[k + 1]
+    u, v = u + au, v + av
+    s = s + sqrt((bu - au) * (bu - au) + (bv - av) * (bv - av))
+  end
+  return u / 4, v / 4, s / 4
+end
+
 --- Assign the detections of a frame to live tracks.
 -- @tparam table set the live tracks (`tagpose.tracker.tracks`)
 -- @tparam int n the frame's entries

@@ -3,7 +3,8 @@
 -- Fed the detections of one frame with the frame's time, a tracker solves every tag (the
 -- pipeline of `tagpose.solve`, run directly) and chooses its pose with its track's tracking
 -- filter (`tagpose.track`: the branch of the planar ambiguity carried from frame to frame,
--- through face-on crossings); it returns each detection's pose with the id of its track:
+-- through face-on crossings); it returns each detection's pose with the id of its track
+-- (`tracker:assign` returns the tracks alone, without solving):
 --
 -- * tags that share an id (lab tags are often all id 0) are told apart by where they are in
 --   the image: a detection continues the track of its id whose predicted centre is nearest,
@@ -41,6 +42,7 @@ local associate = require("tagpose.tracker.associate")
 local smooth = require("tagpose.tracker.smooth")
 
 local sqrt = math.sqrt
+local centre_and_side = associate.centre_and_side
 local is_finite, describe = compat.is_finite, args.describe
 
 local M = {}
@@ -198,19 +200,6 @@ function Tracker:count()
   return self.live.count
 end
 
--- The centre and mean side (px) of four corners, flat.
-local function centre_and_side(px)
-  local u, v, s = 0, 0, 0
-  for j = 1, 7, 2 do
-    local au, av = px[j], px[j + 1]
-    local k = j < 7 and j + 2 or 1
-    local bu, bv = px[k], px[k + 1]
-    u, v = u + au, v + av
-    s = s + sqrt((bu - au) * (bu - au) + (bv - av) * (bv - av))
-  end
-  return u / 4, v / 4, s / 4
-end
-
 -- Read entry i of a frame: its id, centre, side and corners into the frame's arrays; or the
 -- reason it is malformed.
 local function read_entry(self, det, i)
@@ -311,7 +300,8 @@ local function detection(self, i, id, t, time, row, entry)
   end
   local w, px = self.work, self.pxs[i]
   for k = 1, 8 do w.px[k] = px[k] end
-  local p, first, a, b, state = solve(self, i, t, size, time)
+  local p, first, a, b, state -- (none when only assigning tracks)
+  if self.solving then p, first, a, b, state = solve(self, i, t, size, time) end
   local new
   t, new = advance(self, i, id, t, time)
   if state then t.state = state end
@@ -346,35 +336,22 @@ end
 
 local EMPTY = {}
 
---- Solve one frame's detections.
--- @tparam ?{table,...} detections the frame's tags as a camera system hands them out:
---   `{id = n, corners = {c1, c2, c3, c4}}` each, a corner `{x = u, y = v}` or `{u, v}` in the
---   detection order of `tagpose.solve`; other fields are ignored. `nil` is an empty frame.
--- @tparam[opt] number time the frame's time in seconds (default: `tagpose.track.FRAME` after
---   the previous frame). A time earlier than the previous frame's ends every track first.
--- @treturn {table,...} one entry per detection, in order: `{index = i, id =, track = n,
---   pose = <a pose as `tagpose.solve` returns it> or nil, reason = <why not> or nil,
---   new = <true when the track starts here>}` (`track` is nil for a malformed entry); the
---   array's field `skipped` counts the entries skipped (malformed, or an id without a tag
---   size; an entry whose corners give no pose has a track and a reason), `restarted` is true
---   when the time went back, and `warning` says when the times look like milliseconds or frame
---   numbers (steps far beyond `max_gap` at a steady cadence)
--- @raise `bad argument #n to 'update' (...)` when `detections` is not an array (one detection
---   passed alone included) or `time` not a finite number
-function Tracker:update(detections, time)
+-- `update` (solving) and `assign` (fname): the arguments checked at the caller's level.
+local function feed(self, detections, time, fname, solving)
   if detections == nil then detections = EMPTY end
   if type(detections) ~= "table" then
-    raise(1, "update", "array of detections expected, got " .. type(detections))
+    args.raise(1, fname, "array of detections expected, got " .. type(detections), 4)
   end
   if detections.corners ~= nil then
-    raise(1, "update", "array of detections expected, got one detection {id =, corners =} "
-      .. "(pass {detection})")
+    args.raise(1, fname, "array of detections expected, got one detection {id =, corners =} "
+      .. "(pass {detection})", 4)
   end
   if time ~= nil and not is_finite(time) then
-    raise(2, "update", "finite number expected for time, got " .. describe(time))
+    args.raise(2, fname, "finite number expected for time, got " .. describe(time), 4)
   end
   local problem = camera_model.check(self.camera)
-  if problem then raise(0, "update", "the tracker's camera was changed: " .. problem) end
+  if problem then args.raise(0, fname, "the tracker's camera was changed: " .. problem, 4) end
+  self.solving = solving
   local seen = { skipped = 0 }
   if time == nil then time = (self.time or 0) + track.FRAME end
   if self.time and time < self.time then
@@ -416,6 +393,36 @@ function Tracker:update(detections, time)
   end
   tracks.evict(self.live, self.max_tracks)
   return seen
+end
+
+--- Solve one frame's detections.
+-- @tparam ?{table,...} detections the frame's tags as a camera system hands them out:
+--   `{id = n, corners = {c1, c2, c3, c4}}` each, a corner `{x = u, y = v}` or `{u, v}` in the
+--   detection order of `tagpose.solve`; other fields are ignored. `nil` is an empty frame.
+-- @tparam[opt] number time the frame's time in seconds (default: `tagpose.track.FRAME` after
+--   the previous frame). A time earlier than the previous frame's ends every track first.
+-- @treturn {table,...} one entry per detection, in order: `{index = i, id =, track = n,
+--   pose = <a pose as `tagpose.solve` returns it> or nil, reason = <why not> or nil,
+--   new = <true when the track starts here>}` (`track` is nil for a malformed entry); the
+--   array's field `skipped` counts the entries skipped (malformed, or an id without a tag
+--   size; an entry whose corners give no pose has a track and a reason), `restarted` is true
+--   when the time went back, and `warning` says when the times look like milliseconds or frame
+--   numbers (steps far beyond `max_gap` at a steady cadence)
+-- @raise `bad argument #n to 'update' (...)` when `detections` is not an array (one detection
+--   passed alone included) or `time` not a finite number
+function Tracker:update(detections, time)
+  return (feed(self, detections, time, "update", true))
+end
+
+--- Each detection's track without solving it: `update`'s association alone (its gate, gaps,
+-- restarts and warnings; a track started here gets its filter state at its first `update`),
+-- for a caller who solves the tags itself or only tells apart the tags sharing an id.
+-- @tparam ?{table,...} detections as for `update`
+-- @tparam[opt] number time as for `update`
+-- @treturn {table,...} `update`'s entries without `pose` (with `smooth`, rows without a pose)
+-- @raise `bad argument #n to 'assign' (...)` as `update`
+function Tracker:assign(detections, time)
+  return (feed(self, detections, time, "assign", false))
 end
 
 --- Revise every recorded choice with the evidence of the later frames of its track.

@@ -2,7 +2,9 @@
 --
 -- `poses` draws the figure of a replay: one panel each for the position `x`, `y`, `z` (left
 -- column) and for the rotation (right column), the frame number along every horizontal axis,
--- one line per tag id (one colour per tag), one line style per source: the first source solid,
+-- one line per track of a tag (one colour per track: the entries' `track` tells apart the tags
+-- that share an id, as `tagpose.tracker` or a truth file's `track` column gives it; the plot
+-- itself associates nothing), one line style per source: the first source solid,
 -- the others dashed (for instance a ground truth or another solver's pose log). `figure` is the
 -- general layout underneath, for panels of any series.
 --
@@ -20,8 +22,8 @@
 -- (`"m"` by default). SVG coordinates are in CSS pixels.
 --
 -- Its parts: `tagpose.tools.plot.scale` (ticks, ranges), `tagpose.tools.plot.svg` (a panel,
--- markers, the legend), `tagpose.tools.plot.figure` (the layout), `tagpose.tools.plot.tracker`
--- (tags sharing an id), `tagpose.tools.plot.recorder` (series kept compact) and
+-- markers, the legend), `tagpose.tools.plot.figure` (the layout),
+-- `tagpose.tools.plot.recorder` (series kept compact) and
 -- `tagpose.tools.plot.draw` (a recorder's figure). The constants below are read from this
 -- module when they are used, so that a caller may change them.
 -- @module tagpose.tools.plot
@@ -30,7 +32,6 @@ local args = require("tagpose.core.args")
 local compat = require("tagpose.core.compat")
 local scale = require("tagpose.tools.plot.scale")
 local figure = require("tagpose.tools.plot.figure")
-local tracks = require("tagpose.tools.plot.tracker")
 local recorder_model = require("tagpose.tools.plot.recorder")
 local draw = require("tagpose.tools.plot.draw")
 
@@ -123,28 +124,30 @@ M.roll_pitch_yaw = recorder_model.roll_pitch_yaw
 -- @function figure
 M.figure = figure.figure
 
---- A tracker that keeps apart the tags sharing an id (lab tags are often all id 0): each
--- detection of a frame joins the live track of its id whose last position is nearest (pairs
--- taken nearest first, each track at most once a frame), if it is within the track's gate;
--- the others start tracks. A track not seen for more than `keep` frames ends, and its slot
--- number is given to the next new track of the id.
--- @tparam[opt] table options `keep` (frames, default 1), `max_tracks` (per id, default 16:
---   further detections get no track, slot `nil`)
--- @treturn table a tracker with `assign(frame, id, points)`: `points` an array of
---   `{x, y[, z][, gate = r]}` (a point or `nil` each); returns an array of slots (1, 2, ...)
---   and an array of the tracks (tables the caller may keep its own fields in)
--- @function tracker
-M.tracker = tracks.new
-
 --- The rows of one frame by tag id (rows without a tag left out), and the ids in the order
--- they first come: what a tracker's `assign` takes a tag at a time.
+-- they first come.
 -- @tparam {table,...} rows entries with a `tag` field
 -- @tparam[opt] int first the first row (default 1)
 -- @tparam[opt] int last the last row (default #rows)
 -- @treturn table tag → the array of its rows
 -- @treturn {any,...} the tags
--- @function by_tag
-M.by_tag = tracks.by_tag
+function M.by_tag(rows, first, last)
+  local by_tag, tags = {}, {}
+  for k = first or 1, last or #rows do
+    local row = rows[k]
+    local tag = row.tag
+    if tag ~= nil then
+      local list = by_tag[tag]
+      if not list then
+        list = {}
+        by_tag[tag] = list
+        tags[#tags + 1] = tag
+      end
+      list[#list + 1] = row
+    end
+  end
+  return by_tag, tags
+end
 
 --- A recorder of poses for a figure, fed row by row (memory bounded by `MAX_POINTS` per
 -- series, whatever the length of the log).
@@ -230,45 +233,38 @@ local function check_sources(sources)
   return nil
 end
 
--- the position of a pose as a tracker point, or nil
-local function position_point(pose)
-  local p = type(pose) == "table" and pose.position
-  if type(p) ~= "table" then return nil end
-  return { p.x, p.y, p.z }
-end
-
---- Feed a recorder the entries of one source, keeping apart the tags that share an id in a
--- frame (by the nearest position to each track's last one; see `tracker`).
+--- Feed a recorder the entries of one source: one line per tag id, and per track of an id
+-- where the entries carry one (`track`: `tagpose.tracker`'s track, or a truth file's `track`
+-- column), the tracks of an id drawn as `#1`, `#2`, ... in the order they come.
 -- @tparam table recorder a `recorder`
 -- @tparam int source the source's index (`recorder:source(...)`)
--- @tparam {table,...} entries `{frame =, tag =, pose =}` in log order
+-- @tparam {table,...} entries `{frame =, tag =, pose =[, track =]}` in log order
 function M.record_entries(recorder, source, entries)
-  local tracker = M.tracker()
-  local i, n = 1, #entries
-  while i <= n do
-    -- the entries of one frame
-    local frame = entries[i].frame
-    local j = i
-    while j + 1 <= n and entries[j + 1].frame == frame do j = j + 1 end
-    local by_tag, tags = tracks.by_tag(entries, i, j)
-    for _, tag in ipairs(tags) do
-      local list = by_tag[tag]
-      local points = {}
-      for k, e in ipairs(list) do points[k] = position_point(e.pose) or false end
-      local slots = is_finite(frame) and tracker:assign(frame, tag, points) or {}
-      for k, e in ipairs(list) do
-        recorder:add(source, tag, slots[k] or 1, frame, e.pose)
+  local slots = {} -- tag -> {[track] = slot, n = slots}
+  for i = 1, #entries do
+    local e = entries[i]
+    local tag, slot = e.tag, 1
+    if tag ~= nil then
+      if e.track ~= nil then
+        local of = slots[tag] or { n = 0 }
+        slots[tag] = of
+        slot = of[e.track]
+        if not slot then
+          of.n = of.n + 1
+          slot, of[e.track] = of.n, of.n
+        end
       end
+      recorder:add(source, tag, slot, e.frame, e.pose)
     end
-    i = j + 1
   end
 end
 
 --- The SVG figure of pose logs: position and rotation over frames, one line per tag id (and
--- per track of an id that several tags share in a frame).
+-- per track of an id, where the entries carry `track`: see `record_entries`).
 -- @tparam {table,...} sources the logs to draw, each `{label = string, entries = {...}}` with
---   entries `{frame =, tag =, pose =}` as `tagpose.tools.log.read_poses` returns them (or as a
---   replay builds them from `tagpose.solve`'s results; a `nil` pose is a gap). The first source
+--   entries `{frame =, tag =, pose =[, track =]}` as `tagpose.tools.log.read_poses` returns
+--   them (or as a replay builds them from `tagpose.tracker`'s results; a `nil` pose is a
+--   gap). The first source
 --   is drawn solid, the others dashed (`DASHES`); a source's `dash` field overrides its style.
 -- @tparam[opt] table options
 --

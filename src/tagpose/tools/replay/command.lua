@@ -14,8 +14,12 @@ local M = {}
 
 --- The usage line.
 M.USAGE = "usage: tagpose-replay LOG.csv [--camera FILE] [--tag-size S[UNIT]]\n"
-  .. "  [--method refined|seed] [--track] [--max-gap N] [--out POSES.csv|-] [--svg PLOT.svg]\n"
-  .. "  [--rpy] [--unit NAME] [--title TEXT] [--compare OTHER.csv ...]\n"
+  .. "  [--method refined|seed] [--track] [--smooth] [--max-gap T(s|ms)] [--sigma PX]\n"
+  .. "  [--fps F] [--out POSES.csv|-] [--svg PLOT.svg] [--rpy] [--unit NAME] [--title TEXT]\n"
+  .. "  [--compare OTHER.csv ...]\n"
+
+--- Frames per second of the `frame` column when the log has no `time` column (`--fps`).
+M.FPS = 30
 
 local USAGE = M.USAGE
 
@@ -60,17 +64,39 @@ local function tag_size(opt, v)
   opt.tag_size_unit = unit ~= "" and unit or nil
 end
 
+-- a positive finite number of an option, or a usage error
+local function positive(name, v)
+  local x = compat.decimal(v)
+  if not (x and x > 0 and x < huge) then usage(name .. ": positive number expected, got " .. v) end
+  return x
+end
+
+-- --max-gap T(s|ms) into opt: seconds, as the tracker's; a bare number, which counted frames
+-- before, is refused rather than read in another unit
+local function max_gap(opt, v)
+  local num, unit = v:match("^(.-)%s*(m?s)$")
+  local x = num and compat.decimal(num)
+  if not (x and x >= 0 and x < huge) then
+    usage("--max-gap: a time with its unit expected (0.5s, 500ms), got " .. v
+      .. (compat.decimal(v) and " (a bare number counted frames before; the tracker's gap is"
+      .. " in seconds: 3 frames at 30 fps are --max-gap 0.1s)" or ""))
+  end
+  opt.max_gap = unit == "ms" and x / 1000 or x
+end
+
 -- the options that take one value, and the field each sets
 local VALUE = { ["--camera"] = "camera", ["--out"] = "out", ["--svg"] = "svg",
   ["--unit"] = "unit", ["--title"] = "title" }
 
 --- The options of the command line.
 -- @tparam {string,...} arg the arguments
--- @treturn table `{log =, camera =, tag_size =, tag_size_unit =, method =, max_gap =, out =,
---   svg =, rpy =, unit =, title =, compare = {path, ...}}` (`max_gap` set by `--track` too)
+-- @treturn table `{log =, camera =, tag_size =, tag_size_unit =, method =, track =, smooth =,
+--   max_gap =, sigma =, fps =, out =, svg =, rpy =, unit =, title =, compare = {path, ...}}`
+--   (`track` set by `--smooth` and `--max-gap` too; `max_gap` in seconds or nil, the
+--   tracker's default; `fps` `FPS` unless given)
 -- @raise an `EXIT` for `--help` and for a usage error
 function M.parse(arg)
-  local opt = { compare = {}, max_gap = nil }
+  local opt = { compare = {}, fps = M.FPS }
   local i, n = 1, #arg
   local function value(name)
     i = i + 1
@@ -93,13 +119,16 @@ function M.parse(arg)
         usage("--method: refined or seed expected, got " .. opt.method)
       end
     elseif a == "--track" then
-      opt.max_gap = opt.max_gap or 1
+      opt.track = true
+    elseif a == "--smooth" then
+      opt.track, opt.smooth = true, true
     elseif a == "--max-gap" then
-      local v = value(a)
-      opt.max_gap = tonumber(v)
-      if not (opt.max_gap and opt.max_gap >= 1 and opt.max_gap < huge) then
-        usage("--max-gap: number >= 1 expected, got " .. v)
-      end
+      max_gap(opt, value(a))
+      opt.track = true
+    elseif a == "--sigma" then
+      opt.sigma = positive(a, value(a))
+    elseif a == "--fps" then
+      opt.fps, opt.fps_given = positive(a, value(a)), true
     elseif a == "--rpy" then
       opt.rpy = true
     elseif a == "--compare" then

@@ -1,10 +1,15 @@
 --- The pose logs tagpose-replay compares with (`--compare`): read alongside the corner log in
--- frame order, drawn dashed on the figure, and matched with the solved rows by frame and tag
--- (nearest first) to measure the position and rotation differences.
+-- frame order, matched with the solved rows by frame and tag (nearest position first) to
+-- measure the position and rotation differences, and drawn dashed on the figure.
+--
+-- A compared row is drawn on the line of the replay's track it is matched with, so that the
+-- dashed line of `tag 0 #2` is the one that belongs with `tag 0 #2` (the tracks are the
+-- tracker's: the plot has one association). A row matched with no solved row takes the line
+-- of a row of its frame and tag left over (a row that failed), else the line its tag last
+-- had in this log, else the first.
 -- @module tagpose.tools.replay.compare
 
 local log = require("tagpose.tools.log")
-local plot = require("tagpose.tools.plot")
 local stats = require("tagpose.tools.replay.stats")
 local command = require("tagpose.tools.replay.command")
 local frames = require("tagpose.tools.replay.frames")
@@ -12,9 +17,14 @@ local frames = require("tagpose.tools.replay.frames")
 local sqrt, asin, deg, min, huge = math.sqrt, math.asin, math.deg, math.min, math.huge
 local add, note = stats.add, stats.note
 
-local MAX_GROUP = frames.MAX_GROUP
+local MAX_GROUP, MAX_IDS = frames.MAX_GROUP, frames.MAX_IDS
 
 local M = {}
+
+--- Rotations more than this many degrees apart are counted (`apart`): a row whose rotation is
+-- this far from the truth is on the wrong branch of the planar ambiguity (as
+-- `examples/accuracy.lua` counts its flips).
+M.APART = 30
 
 -- the rotation between two quaternions, degrees
 local function rotation_difference(a, b)
@@ -30,12 +40,6 @@ local function distance(p, q)
   return sqrt((p.x - q.x) ^ 2 + (p.y - q.y) ^ 2 + (p.z - q.z) ^ 2)
 end
 
-local function position_point(pose)
-  if not pose then return false end
-  local p = pose.position
-  return { p.x, p.y, p.z }
-end
-
 local Compare = {}
 Compare.__index = Compare
 
@@ -43,17 +47,19 @@ Compare.__index = Compare
 -- @tparam string path
 -- @tparam[opt] table recorder the figure's `plot.recorder`, to draw the log on
 -- @treturn table the log: `path`, `matched` (rows matched), `dt` and `dr` (histograms of the
---   position and rotation differences), `problems` (a tally of its malformed rows),
---   `out_of_order`, `first_out_of_order`; `match(frame, solved)`, `finish()`
+--   position and rotation differences), `apart` (rows matched whose rotations are more than
+--   `APART` degrees apart: against a truth file, the wrong rows), `problems` (a tally of its
+--   malformed rows),
+--   `out_of_order`, `first_out_of_order`; `match(frame, solved[, group])`, `finish()`
 -- @return nil, string when it cannot be read
 function M.open(path, recorder)
   local reader, err = log.pose_reader(path)
   if not reader then return nil, err:find(path, 1, true) and err or path .. ": " .. err end
   local label = command.basename(path):gsub("%.csv$", "")
   local self = setmetatable({ path = path, reader = reader, source = recorder and
-    recorder:source(label), recorder = recorder, tracker = plot.tracker(),
-    track_count = frames.track_count(),
+    recorder:source(label), recorder = recorder, last_slot = {}, slotted = 0,
     problems = stats.tally(), dt = stats.histogram(), dr = stats.histogram(), matched = 0,
+    apart = 0,
     frame = nil, rows = {}, last = nil, out_of_order = 0, first_out_of_order = nil,
     unmatched_frame = 0, lookahead = nil, done = false }, Compare)
   return self
@@ -75,26 +81,27 @@ function Compare:peek()
   return self.lookahead
 end
 
--- draw the rows of one frame of this log (a list of entries of the same frame)
-function Compare:draw(frame, rows)
-  if not self.recorder then return end
-  local by_tag, tags = plot.by_tag(rows)
-  for _, tag in ipairs(tags) do
-    local list = by_tag[tag]
-    local points = {}
-    for k, e in ipairs(list) do points[k] = position_point(e.pose) end
-    local known = self.tracker.tracks[tag]
-    local slots = self.tracker:assign(frame, tag, points)
-    frames.bound_tracks(self.tracker, self.track_count, frame, known and #known or 0, tag)
-    for k, e in ipairs(list) do
-      self.recorder:add(self.source, tag, slots[k] or 1, frame, e.pose)
+-- draw a row of this log on the line `slot` (nil: its tag's last, else the first)
+function Compare:draw(e, slot)
+  if not self.recorder or e.drawn then return end
+  e.drawn = true
+  local last = self.last_slot
+  if slot then
+    if last[e.tag] == nil then
+      -- (the tags remembered stay bounded: past MAX_IDS they are forgotten)
+      if self.slotted >= MAX_IDS then
+        last, self.slotted = {}, 0
+        self.last_slot = last
+      end
+      self.slotted = self.slotted + 1
     end
+    last[e.tag] = slot
   end
+  self.recorder:add(self.source, e.tag, slot or last[e.tag] or 1, e.frame, e.pose)
 end
 
--- consume the rows before `frame`, drawing them a frame at a time
+-- consume the rows before `frame`, drawing them
 function Compare:skip_to(frame)
-  local pending, pending_frame = {}, nil
   while true do
     local e = self:peek()
     if not e or e.frame >= frame then break end
@@ -104,14 +111,8 @@ function Compare:skip_to(frame)
       self.first_out_of_order = self.first_out_of_order or e.line
     end
     self.last = e.frame
-    if e.frame ~= pending_frame or #pending >= MAX_GROUP then
-      if pending_frame ~= nil then self:draw(pending_frame, pending) end
-      pending = {}
-    end
-    pending_frame = e.frame
-    pending[#pending + 1] = e
+    self:draw(e)
   end
-  if pending_frame ~= nil then self:draw(pending_frame, pending) end
 end
 
 -- consume the rows before `frame` (drawn only), then gather those of `frame`
@@ -128,19 +129,42 @@ function Compare:take(frame)
       rows[#rows + 1] = e
     else
       self.unmatched_frame = self.unmatched_frame + 1
-      self:draw(frame, { e })
+      self:draw(e)
     end
   end
-  self:draw(frame, rows)
   self.frame, self.rows = frame, rows
   return rows
 end
 
---- Match the solved rows of a frame (entries `{tag =, pose =}`) with this log's, nearest
--- first, each row of either at most once.
+-- draw the rows of a frame: on the line of the solved row each is matched with, or of a row
+-- of its tag left over (in order), or as `draw` does
+function Compare:draw_frame(rows, group, taken)
+  local left = {}
+  for _, row in ipairs(group) do
+    if not taken[row] then
+      local list = left[row.tag] or {}
+      left[row.tag] = list
+      list[#list + 1] = row
+    end
+  end
+  for _, e in ipairs(rows) do
+    local slot = e.partner and e.partner.slot
+    if not slot and not e.drawn then
+      local list = left[e.tag]
+      local row = list and table.remove(list, 1)
+      slot = row and row.slot
+    end
+    self:draw(e, slot)
+  end
+end
+
+--- Match the solved rows of a frame (entries `{tag =, pose =, slot =}`) with this log's,
+-- nearest first, each row of either at most once; then draw this log's rows of the frame.
 -- @tparam number frame
 -- @tparam {table,...} solved
-function Compare:match(frame, solved)
+-- @tparam[opt] {table,...} group every row of the frame (solved or not), for the lines of the
+--   rows matched with none
+function Compare:match(frame, solved, group)
   local rows = self:take(frame)
   if #rows == 0 then return end
   local by_tag = {}
@@ -162,16 +186,20 @@ function Compare:match(frame, solved)
     if a.k ~= b.k then return a.k < b.k end
     return a.i < b.i
   end)
-  local used = {}
+  local used, taken = {}, {}
   for _, p in ipairs(pairs_) do
     local k, i = p.k, p.i
     if not used[k] and not rows[i].used then
       used[k], rows[i].used = true, true
+      rows[i].partner, taken[solved[k]] = solved[k], true
       self.matched = self.matched + 1
       add(self.dt, p.d)
-      add(self.dr, rotation_difference(solved[k].pose.quaternion, rows[i].pose.quaternion))
+      local dr = rotation_difference(solved[k].pose.quaternion, rows[i].pose.quaternion)
+      add(self.dr, dr)
+      if dr > M.APART then self.apart = self.apart + 1 end
     end
   end
+  if self.recorder then self:draw_frame(rows, group or solved, taken) end
 end
 
 --- Consume (and draw) the rest of the log.

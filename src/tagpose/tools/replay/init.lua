@@ -2,11 +2,13 @@
 -- write the poses, summarise, and draw the curves.
 --
 --   tagpose-replay LOG.csv [--camera FILE] [--tag-size S[UNIT]]
---     [--method refined|seed] [--track] [--max-gap N] [--out POSES.csv|-] [--svg PLOT.svg]
---     [--rpy] [--unit NAME] [--title TEXT] [--compare OTHER.csv ...]
+--     [--method refined|seed] [--track] [--smooth] [--max-gap T(s|ms)] [--sigma PX]
+--     [--fps F] [--out POSES.csv|-] [--svg PLOT.svg] [--rpy] [--unit NAME] [--title TEXT]
+--     [--compare OTHER.csv ...]
 --
--- LOG.csv      a corner log (header frame,tag,u1,v1,u2,v2,u3,v3,u4,v4; further columns ignored;
---              blank lines and lines starting with # skipped; see tagpose.tools.log)
+-- LOG.csv      a corner log (header frame,tag,u1,v1,u2,v2,u3,v3,u4,v4, optionally time in
+--              seconds; further columns ignored; blank lines and lines starting with #
+--              skipped; see tagpose.tools.log)
 -- --camera     a calibration file (tagpose.calibration): a Lua camera file (read as data),
 --              ROS camera_calibration or CameraInfo YAML, or OpenCV FileStorage YAML; default:
 --              camera.lua beside LOG.csv
@@ -14,24 +16,36 @@
 --              default: the camera file's tag_size (a number, or {[id] = size, default =
 --              size}). Poses come out in its unit; the plot's axes name it (--unit overrides)
 -- --method     refined (default) or seed (the report's method exactly)
--- --track      pass each track's pose of the previous frame as the prior of the next;
---              --max-gap N also accepts a pose up to N frames old (and implies --track)
--- --out        write the pose log (frame,tag,x,y,z,qw,qx,qy,qz,error,iterations): one row per
---              readable input row, in input order; a row that failed keeps its frame and tag
---              with empty pose fields. "-" writes it to standard output (the summary then goes
---              to standard error)
+-- --track      the poses of tagpose.tracker, fed each frame's rows with the frame's time: the
+--              same poses as a user's own loop over the tracker
+-- --smooth     the tracker's choices revised with the later frames (tracker:smooth(), two
+--              passes over the log); implies --track
+-- --max-gap    the tracker's max_gap, a time with its unit (0.5s, 500ms; default 0.5 s): a
+--              track unseen longer ends; implies --track. A bare number (frames, before) is
+--              refused
+-- --sigma      the corner noise in px, for the covariance (default: the tracker's running
+--              estimate per track; without --track, tagpose.solve's default)
+-- --fps        frames per second of the frame column, for a log without a time column
+--              (default 30)
+-- --out        write the pose log (frame,tag,x,y,z,qw,qx,qy,qz,error,iterations, then
+--              confidence and the covariance's deviations): one row per readable input row,
+--              in input order; a row that failed keeps its frame and tag with empty pose
+--              fields. "-" writes it to standard output (the summary then goes to standard
+--              error)
 -- --svg        draw x, y, z and the quaternion (or with --rpy roll, pitch, yaw in degrees) over
 --              frames, one line per track; every --compare log is drawn dashed over it
 -- --compare    other pose logs (or truth files frame,tag,x,y,z,qw,qx,qy,qz) to draw and to
 --              measure against, matched by frame and tag; several may follow one --compare
 --
--- The log is read, solved and written row by row: memory holds the rows of one frame, the
--- live tracks and, for the plot, at most `plot.MAX_POINTS` points per track. Rows that share a
--- (frame, tag) key (lab tags are often all id 0) are kept apart as tracks, by image position
--- (each detection joins the track of its id whose last centre is nearest, within twice that
--- detection's diagonal plus 10 px); a track's pose is the prior of its own next detection only.
--- A malformed row is reported with its line number and skipped.
+-- The log is read, solved and written a frame at a time (tagpose.tools.replay.frames): memory
+-- holds the rows of one frame, the tracker's live tracks and, for the plot, at most
+-- `plot.MAX_POINTS` points per track. Rows that share a (frame, tag) key (lab tags are often
+-- all id 0) are kept apart as tracks by the tracker, by image position, with or without
+-- --track. A malformed row is reported with its line number and skipped. Times that look like
+-- milliseconds or frame numbers, and fractional frame numbers, are pointed out on standard
+-- error (tagpose.tools.replay.clock).
 --
+-- The corner log is opened first: a log that cannot be read is named before anything else.
 -- The outputs (--out, --svg) may not be inputs (the log, the camera file, a compared log) or
 -- each other, under any name (`tagpose.tools.files`: the file system's device and inode); they
 -- are opened before anything is read and written whole (`tagpose.formats.output`). Exit
@@ -39,9 +53,11 @@
 -- or written (standard output included), 2 on a usage error or an output that is an input.
 --
 -- Its parts: `tagpose.tools.replay.command` (the command line and its exits),
--- `tagpose.tools.replay.frames` (rows solved, tracked, written and counted a frame at a time),
--- `tagpose.tools.replay.compare` (the logs compared with), `tagpose.tools.replay.stats`
--- (bounded counts) and `tagpose.tools.replay.summary` (what it says, and the figure).
+-- `tagpose.tools.replay.frames` (rows fed to the tracker, written and counted a frame at a
+-- time), `tagpose.tools.replay.clock` (the frames' times), `tagpose.tools.replay.slots` (the
+-- plot's lines), `tagpose.tools.replay.compare` (the logs compared with),
+-- `tagpose.tools.replay.stats` (bounded counts) and `tagpose.tools.replay.summary` (what it
+-- says, and the figure).
 -- @module tagpose.tools.replay
 
 local tagpose = require("tagpose")
@@ -50,6 +66,7 @@ local log = require("tagpose.tools.log")
 local plot = require("tagpose.tools.plot")
 local command = require("tagpose.tools.replay.command")
 local frames = require("tagpose.tools.replay.frames")
+local clock = require("tagpose.tools.replay.clock")
 local compare = require("tagpose.tools.replay.compare")
 local summary = require("tagpose.tools.replay.summary")
 local files = require("tagpose.tools.files")
@@ -95,6 +112,11 @@ local function load_camera(opt, camera_path)
   if sizes == nil then
     usage(camera_path .. " has no tag_size; give --tag-size S")
   end
+  -- (the tracker checks the sizes: a table it cannot use is the camera file's fault)
+  local ok, err = pcall(frames.tracker, opt, camera, sizes)
+  if not ok then
+    fail(camera_path .. ": " .. tostring(err):gsub("^bad argument #%d to 'new' %((.*)%)$", "%1"))
+  end
   local unit = opt.unit or opt.tag_size_unit or (opt.tag_size and "tag-size units")
     or info.unit or "m"
   return camera, { path = camera_path, info = info, unit = unit }, sizes
@@ -120,14 +142,20 @@ local function open_outputs(opt, open)
   return out
 end
 
--- the corner log, the figure's recorder, the logs to compare with
-local function open_inputs(opt, out)
+-- the corner log's reader
+local function open_log(opt)
   local reader, rerr = log.corner_reader(opt.log)
   if not reader then fail(rerr:find(opt.log, 1, true) and rerr or opt.log .. ": " .. rerr) end
+  return reader
+end
+
+-- the corner log, the figure's recorder, the logs to compare with
+local function open_inputs(opt, out)
+  local reader = open_log(opt)
   if opt.svg then
     out.recorder = plot.recorder({ rotation = opt.rpy and "rpy" or "quaternion" })
     out.main_source = out.recorder:source("tagpose " .. (opt.method or "refined")
-      .. (opt.max_gap and " tracked" or ""))
+      .. (opt.smooth and " smoothed" or opt.track and " tracked" or ""))
   end
   for _, path in ipairs(opt.compare) do
     local c, cerr = compare.open(path, out.recorder)
@@ -139,6 +167,10 @@ end
 
 local function run(arg, open)
   local opt = command.parse(arg)
+  -- the log first: a log that cannot be read is named as such, not as a missing camera file
+  local probe, perr = io.open(opt.log, "r")
+  if not probe then fail("log: " .. tostring(perr)) end
+  probe:close()
   local camera_path = camera_path_of(opt)
   refuse_clashes(opt, camera_path)
   local files_out = open_outputs(opt, open)
@@ -152,7 +184,11 @@ local function run(arg, open)
 
   local camera, source, sizes = load_camera(opt, camera_path)
   local reader = open_inputs(opt, files_out)
-  local replay = frames.new(opt, camera, sizes, files_out)
+  local times = clock.new(opt, reader.has_time, function(text)
+    io.stderr:write("replay: warning: ", text, "\n")
+  end)
+  local smoothed = opt.smooth and frames.forward(opt, camera, sizes, open_log(opt), times)
+  local replay = frames.new(opt, camera, sizes, files_out, times, smoothed or nil)
   frames.read(replay, reader)
   for _, c in ipairs(files_out.compares) do c:finish() end
 

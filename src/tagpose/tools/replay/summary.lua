@@ -1,6 +1,7 @@
---- What tagpose-replay says when it has replayed a log: the camera and method, the counts of
--- rows (solved, failed, malformed, repeated, out of order), the medians, the comparisons, the
--- files written; and the figure.
+--- What tagpose-replay says when it has replayed a log: the camera, the method, the time and
+-- σ, the counts of rows (solved, failed, malformed, repeated, out of order, smoothed), the
+-- mistakes of time, the medians and the noise, the comparisons, the files written; and the
+-- figure.
 --
 -- Every function takes `say(fmt, ...)`, which writes one formatted line, and the replay's
 -- record of `tagpose.tools.replay.frames`.
@@ -10,6 +11,7 @@ local plot = require("tagpose.tools.plot")
 local stats = require("tagpose.tools.replay.stats")
 local command = require("tagpose.tools.replay.command")
 local frames = require("tagpose.tools.replay.frames")
+local compare = require("tagpose.tools.replay.compare")
 
 local ceil, min = math.ceil, math.min
 local concat = table.concat
@@ -79,9 +81,25 @@ function M.head(say, run, source)
   if info.ignored and #info.ignored > 0 then
     say("  (not read from %s: %s)", source.path, concat(info.ignored, ", "))
   end
-  say("  method %s, %s", opt.method or "refined", opt.max_gap
-    and ("tracking each tag from its pose up to %s frame%s before"):format(number(opt.max_gap),
-      opt.max_gap == 1 and "" or "s") or "no tracking")
+  local tracker = run.tracker
+  say("  method %s, %s", opt.method or "refined", opt.track
+    and ("tracked by tagpose.tracker (a track ends unseen for more than %s s)%s"):format(
+      number(tracker.max_gap), opt.smooth and ", smoothed over the whole log" or "")
+    or "each row solved alone (no tracking; the tracker's tracks only tell tags apart)")
+  local times = run.clock
+  if times.has_time then
+    say("  time   the log's time column (s)%s", opt.fps_given and "; --fps not used" or "")
+  else
+    say("  time   frame / %s (frames per second, --fps; the log has no time column)",
+      number(opt.fps))
+  end
+  if opt.sigma then
+    say("  sigma  %s px (--sigma)", number(opt.sigma))
+  elseif opt.track then
+    say("  sigma  each track's running estimate from its residuals (no --sigma)")
+  else
+    say("  sigma  tagpose.solve's default, pooled with each row's residuals (no --sigma)")
+  end
 end
 
 local function list_reasons(say, t, what)
@@ -121,17 +139,38 @@ function M.rows(say, run)
     say("uncounted  %d rows of ids past the first %d of their frame: not checked for repeated"
       .. " keys", run.uncounted, frames.MAX_IDS)
   end
-  if run.track_count.forgotten > 0 then
-    say("forgotten  %d live tracks dropped past %d (the least recently seen): their tags' next"
-      .. " detections start new tracks", run.track_count.forgotten, frames.MAX_LIVE)
-  end
-  if run.untracked > 0 then
-    say("untracked  %d detections beyond %d tracks of one id in a frame: solved without a"
-      .. " prior, not drawn", run.untracked, frames.MAX_TRACKS)
-  end
   if run.order.rows > 0 then
-    say("order      %d rows come after a later frame (first at line %d): they get no prior,"
-      .. " and the plot and comparisons assume frame order", run.order.rows, run.order.first)
+    say("order      %d rows come after a later frame (first at line %d): the plot and the"
+      .. " comparisons assume frame order", run.order.rows, run.order.first)
+  end
+  M.time(say, run)
+  if run.smoothed then
+    say("smoothed   %d rows take the other pose of the planar ambiguity once the later frames"
+      .. " are seen", run.switched)
+  end
+end
+
+--- The lines on the frames' times: what looks like a mistake.
+-- @tparam function say
+-- @tparam table run
+function M.time(say, run)
+  local times = run.clock
+  if times.restarts > 0 then
+    say("restarts   %d time%s the time went back (first at line %d): the tracker ended every"
+      .. " track there", times.restarts, times.restarts == 1 and "" or "s", times.first_restart)
+  end
+  if times.cadence > 0 then
+    say("time       %d frames step far beyond the max gap at a steady cadence (first at line"
+      .. " %d): milliseconds or frame numbers where seconds belong?", times.cadence,
+      times.first_cadence)
+  end
+  if times.fractional > 0 then
+    say("frames     %d rows have a fractional frame number (first at line %d): seconds in the"
+      .. " frame column?", times.fractional, times.first_fractional)
+  end
+  if times.mixed > 0 then
+    say("time       %d rows carry a time other than their frame's first row's (first at line"
+      .. " %d): the first is used", times.mixed, times.first_mixed)
   end
 end
 
@@ -158,6 +197,8 @@ function M.medians(say, run)
   end
   say("median reprojection error %.3g px, median solveQuad iterations %s", med_error,
     number(med_iterations))
+  say("noise      sigma %.3g px, from the median squared residual of the %d solved rows (2"
+    .. " degrees of freedom a tag)", frames.sigma(run), run.solved)
 end
 
 --- The lines on each compared log.
@@ -169,8 +210,10 @@ function M.comparisons(say, run, unit)
     if c.matched > 0 then
       local lu = unit == "tag-size units" and "" or " " .. unit
       say("vs %s: %d rows matched; position difference median %.3g%s, p95 %.3g%s; rotation"
-        .. " median %.3g deg, p95 %.3g deg", c.path, c.matched, quantile(c.dt, 0.5), lu,
-        quantile(c.dt, 0.95), lu, quantile(c.dr, 0.5), quantile(c.dr, 0.95))
+        .. " median %.3g deg, p95 %.3g deg; %d row%s (%.2f %%) more than %s deg apart",
+        c.path, c.matched, quantile(c.dt, 0.5), lu, quantile(c.dt, 0.95), lu,
+        quantile(c.dr, 0.5), quantile(c.dr, 0.95), c.apart, c.apart == 1 and "" or "s",
+        100 * c.apart / c.matched, number(compare.APART))
     else
       say("vs %s: no solved row has a pose there with the same frame and tag", c.path)
     end
