@@ -96,8 +96,13 @@ local OPTIONS = { "up", "up_tolerance", "floor", "floor_tolerance", "previous", 
   "layout", "max_iterations", "sigma" }
 
 -- the scalar options: name, check, what the check expects
+-- (an angle in radians: one above π/2 is degrees passed for radians, a prior that holds nothing)
+local function is_tolerance(v)
+  return is_positive(v) and v <= 0.5 * math.pi
+end
+
 local SCALAR_OPTIONS = {
-  "up_tolerance", is_positive, "positive number",
+  "up_tolerance", is_tolerance, "angle in radians, above 0 and at most π/2 (math.rad(2) is 2°)",
   "floor", is_finite, "finite number",
   "floor_tolerance", is_positive, "positive number",
   "max_iterations", args.is_count, "positive integer",
