@@ -117,7 +117,8 @@ end
 
 -- The covariance of the returned pose, or of its alternative.
 local function covariance(mt, x, is_alt)
-  if analysed ~= mt then candidates(mt) end
+  local current = analysed == mt -- the analysis's candidates are this result's: reuse it
+  if not current then candidates(mt) end
   local c, slot, k, sign = cand_a, X_COV_A, x[X_K_A], 1
   if is_alt then c, slot, k, sign = cand_b, X_COV_B, x[X_K_B], -1 end
   -- (σ² estimated from the frame: the covariance and its chord term widened by κ, so that its
@@ -126,7 +127,7 @@ local function covariance(mt, x, is_alt)
   c.k = kappa * k
   local d = c.chord
   for i = 1, 6 do d[i] = sign * x[X_CHORD + i] end
-  local cov = lazy.uncertainty.covariance(c, kappa * mt[SIGMA2], x[slot] or nil)
+  local cov = lazy.uncertainty.covariance(c, kappa * mt[SIGMA2], x[slot] or nil, current)
   x[slot] = cov
   return cov
 end

@@ -72,6 +72,9 @@ local factors_a, factors_b = {}, {} -- the LDLᵀ factors of the two candidates'
 local packed = {} -- a packed H⁻¹
 local product = {} -- a flat rotation
 local both, logdets = {}, {} -- the two candidates' normal equations, and their ln det H
+-- the candidates whose factors factors_a and factors_b hold (set by analyse; any other use of
+-- factors_a clears them)
+local factored_a, factored_b
 
 -- The tilt of a pose: the component a of the tag's normal n across the line of sight l to its
 -- centre, as sin θ = |a| and a itself, with n·l and |t|.
@@ -138,6 +141,7 @@ function M.analyse(a, b, sigma2)
   -- solve's)
   both[1], both[2] = a.normal, b.normal
   for c = 1, 2 do logdets[c] = factor(both[c], c == 1 and Fa or Fb) end
+  factored_a, factored_b = a, b
   local dc = (b.sse - a.sse) / sigma2
   -- Laplace: each basin's mass exp(-χ²/2) (2π)³ det(H/σ²)^(-1/2), σ cancels in the ratio
   local L = 0.5 * dc + 0.5 * (logdets[2] - logdets[1])
@@ -249,11 +253,25 @@ local chord = M.chord
 -- @treturn table the covariance
 -- @treturn number ln det H (pivots below 1e-12 of their diagonal raised to it)
 function M.from_normal(N, sigma2, k, d, out)
+  factored_a, factored_b = nil, nil
   local ld = factor(N, factors_a)
+  return M.from_factors(factors_a, ld, sigma2, k, d, out)
+end
+
+--- The covariance from H's factors (`from_normal` without factoring H again).
+-- @tparam {number,...} F the LDLᵀ factors (`tagpose.uncertainty.matrix.factor`)
+-- @tparam number ld their ln det H
+-- @tparam number sigma2 σ² (px²)
+-- @tparam number k the chord's factor (0: none)
+-- @tparam ?{number,...} d the chord
+-- @tparam[opt] table out nested 6×6 to fill (nil: a new one)
+-- @treturn table the covariance
+-- @treturn number ld
+function M.from_factors(F, ld, sigma2, k, d, out)
   if k == 0 or not d then
-    return fill(out, inverse(factors_a, packed), sigma2, 0, 0, 0, 0, 0, 0, 0), ld
+    return fill(out, inverse(F, packed), sigma2, 0, 0, 0, 0, 0, 0, 0), ld
   end
-  return fill(out, inverse(factors_a, packed), sigma2, k, d[1], d[2], d[3], d[4], d[5], d[6]), ld
+  return fill(out, inverse(F, packed), sigma2, k, d[1], d[2], d[3], d[4], d[5], d[6]), ld
 end
 
 --- The covariance of a candidate: `σ² H⁻¹` and, when `assess` found the candidate to be one of
@@ -262,9 +280,16 @@ end
 -- @tparam table c a candidate record (`normal`; optionally `k` and `chord` from `assess`)
 -- @tparam number sigma2 σ² (px²)
 -- @tparam[opt] table out nested 6×6 to fill (nil: a new one)
+-- @tparam[opt] boolean assessed c is a record the last `assess` took and neither it nor its
+--   `normal` has changed since: its factors are reused
 -- @treturn table the covariance
 -- @treturn number ln det H
-function M.covariance(c, sigma2, out)
+function M.covariance(c, sigma2, out, assessed)
+  if assessed and c == factored_a then
+    return M.from_factors(factors_a, logdets[1], sigma2, c.k or 0, c.chord, out)
+  elseif assessed and c == factored_b then
+    return M.from_factors(factors_b, logdets[2], sigma2, c.k or 0, c.chord, out)
+  end
   return M.from_normal(c.normal, sigma2, c.k or 0, c.chord, out)
 end
 
