@@ -17,19 +17,30 @@
 -- constant-rate Kalman filter on `τ` (white angular acceleration of density `PROCESS`,
 -- rad²/s³, so missed frames and uneven spacing are handled by the time between frames), with
 -- a log-weight. Every frame each hypothesis branches on which candidate is the true pose:
--- its weight gains the motion likelihood of that candidate and the frame's evidence for it
--- (below). A new path may also start at either candidate with a small weight (`BIRTH`), so
--- a hypothesis set that lost the truth recovers. Children that coincide are merged, the best
--- `HYPOTHESES` kept. The probability that a candidate is the true pose is the weight of the
--- hypotheses that chose it. (`tagpose.track.filter` does one frame: predict, branch, merge,
--- emit.)
+-- its weight gains the frame's likelihood under the hypothesis, its share of it that falls on
+-- that candidate's side, and the frame's evidence for the candidate (below). A new path may
+-- also start at either candidate with a small weight (`BIRTH`), so a hypothesis set that lost
+-- the truth recovers. Children that coincide are merged, the best `HYPOTHESES` kept. The
+-- probability that a candidate is the true pose is the weight of the hypotheses that chose it.
+-- (`tagpose.track.filter` does one frame: predict, branch, merge, emit.)
 --
--- **The measurement.** A candidate's `τ` near face-on is biased away from zero (its size is
--- set by the noise: about `√(σ/w)`, σ the corner noise, w the tag's side in pixels) and its
--- direction is poorly known; so the filter takes `g·τ` with variance `r²` (per axis), where
--- with `x = |τ| / √(σ/w)`: `g = SHRINK` for `x ≤ SHRINK_FROM`, rising linearly to 1 at
--- `SHRINK_TO`, and `r = min(SPREAD, SPREAD_TAIL / x)·√(σ/w)`. These were measured on
--- synthetic sequences (bench/make_sequences.lua).
+-- **The likelihood.** What the corners fix of the tilt, to first order, is its square: the
+-- foreshortening's direction and amount, not its sign (the two candidates' `τ` are nearly
+-- opposite). As a complex number, `q = τ²` is measured with noise that is unbiased, isotropic
+-- and of one size whatever the tilt, about `2.6·σ/w` per part (σ the corner noise, w the tag's
+-- side, in pixels; measured on synthetic sequences), while `τ` itself near face-on is biased
+-- away from zero (about `√(σ/w)` in size) and poor in direction. So a hypothesis predicting
+-- `τ̂` with per-axis variance `P` gives the frame the likelihood of a candidate's `q` under a
+-- Gaussian about `τ̂²` of per-part variance `4(|τ̂|² + P)·P + ρ²`, `ρ = SQUARE_NOISE·σ/w` (the
+-- measured 2.6, with an allowance); its children share it in proportion to how near each
+-- candidate lies to the prediction. That is what carries a far tag through face-on: a
+-- hypothesis that keeps its rate through a crossing is not penalised for a `τ` that the noise
+-- inflated.
+--
+-- **The update.** Each child's Kalman update takes its candidate's `g·τ` with variance `r²`
+-- (per axis), where with `x = |τ| / √(σ/w)`: `g = SHRINK` for `x ≤ SHRINK_FROM`, rising
+-- linearly to 1 at `SHRINK_TO`, and `r = min(SPREAD, SPREAD_TAIL / x)·√(σ/w)` (measured: the
+-- true branch's `τ` against the candidate's, by x).
 --
 -- **The evidence** of one frame is a log-likelihood ratio between the two candidates,
 -- `log P(corners | first) − log P(corners | second)`: `M.evidence`,
@@ -67,9 +78,9 @@ local M = {}
 --- Nominal time between frames (s), when no time is given.
 M.FRAME = 1 / 30
 --- Most hypotheses kept.
-M.HYPOTHESES = 16
+M.HYPOTHESES = 12
 --- Density of the white angular acceleration of the tilt vector, rad²/s³.
-M.PROCESS = 0.03
+M.PROCESS = 0.1
 --- Variance of a new path's tilt rate, (rad/s)².
 M.RATE = 0.25
 --- Weight of a new path starting at a candidate, relative to the hypotheses' total.
@@ -87,6 +98,10 @@ M.SHRINK_FROM = 2
 M.SHRINK_TO = 3
 M.SPREAD = 0.7
 M.SPREAD_TAIL = 1.3
+--- Standard deviation of each part of a candidate's tilt vector squared (as a complex number),
+-- over σ/w (σ the corner noise, w the tag's side, both in pixels; see the module's header):
+-- measured 2.6, taken a little wider for what the constant-rate model does not foresee.
+M.SQUARE_NOISE = 3.0
 --- Weight of the reprojection evidence (see above).
 M.EVIDENCE_FROM = 1
 M.EVIDENCE_TO = 3
