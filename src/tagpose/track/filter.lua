@@ -379,31 +379,38 @@ end
 function M.step(T, prev, a, b, size, time, out, llr)
   local has2 = b ~= nil
   local sse1 = a.sse
-  local dt, now, s2 = T.step_and_noise(prev, time, sse1, has2 and b.sse or sse1)
-  -- the candidates' tilt vectors, shrunk, and their variance
+  -- (everything read from prev before out, which may be prev, is written)
+  local dt, now, s2, dof, own = T.step_and_noise(prev, time)
+  -- the candidates' tilt vectors, squared as complex numbers, and the variance of each part of
+  -- their noise; then shrunk, and their variance
   local ax, ay = T.tilt(a.qw, a.qx, a.qy, a.qz, a.tx, a.ty, a.tz)
   local bx, by = ax, ay
   if has2 then bx, by = T.tilt(b.qw, b.qx, b.qy, b.qz, b.tx, b.ty, b.tz) end
-  -- the squared tilts, and the variance of each part of their noise
   local z1r, z1i, z2r, z2i = ax * ax - ay * ay, 2 * ax * ay, bx * bx - by * by, 2 * bx * by
   local rho = T.SQUARE_NOISE * sqrt(s2) / size
   local g, r2, xm = T.measurement(sqrt(ax * ax + ay * ay), size, s2)
   ax, ay, bx, by = g * ax, g * ay, g * bx, g * by
   local ev = 0
   if has2 then
-    ev = llr or T.evidence(sse1, b.sse, s2, xm)
+    ev = llr or T.evidence(sse1, b.sse, s2, xm, dof)
     if ev ~= ev then ev = 0 elseif ev > 700 then ev = 700 elseif ev < -700 then ev = -700 end
   end
-  if not prev then return start(T, out, now, s2, ax, ay, bx, by, r2, has2, ev) end
-  local k = branch(T, prev, dt, ax, ay, bx, by, has2, r2, 0.5 * ev, z1r, z1i, z2r, z2i,
-    rho * rho)
-  local back_first, back_second = weigh(k, prev.first)
-  local m = merge(T, r2, sort(k))
-  local pick, p = emit(out, m, now, s2, back_first, back_second)
-  if not (p == p) then
-    -- a state the caller damaged (not a number in it): start again from this frame
-    return start(T, out, now, s2, ax, ay, bx, by, r2, has2, ev)
+  local pick, p
+  if not prev or prev.count == 0 then
+    pick, p = start(T, out, now, s2, ax, ay, bx, by, r2, has2, ev)
+  else
+    local k = branch(T, prev, dt, ax, ay, bx, by, has2, r2, 0.5 * ev, z1r, z1i, z2r, z2i,
+      rho * rho)
+    local back_first, back_second = weigh(k, prev.first)
+    local m = merge(T, r2, sort(k))
+    pick, p = emit(out, m, now, s2, back_first, back_second)
+    if not (p == p) then
+      -- a state the caller damaged (not a number in it): start again from this frame
+      pick, p = start(T, out, now, s2, ax, ay, bx, by, r2, has2, ev)
+    end
   end
+  -- the noise estimate, with the residuals of the candidate chosen
+  out.sigma2, out.dof = T.noise(s2, own, pick == 1 and sse1 or b.sse)
   return pick, p
 end
 
