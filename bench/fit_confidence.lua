@@ -205,3 +205,20 @@ print(("current map: ECE %.4f, log-likelihood %.1f"):format(ece(function(l)
 print(("fitted map:  ECE %.4f, log-likelihood %.1f"):format(ece(function(l)
   return logistic(map(l, knots, values)) end), best))
 print("M.CONFIDENCE = { " .. table.concat(pairs_out, ", ") .. " }")
+-- the reliability by the posterior's log-odds, and what each map says there
+local edges = { 0, 1, 2, 3, 4, 6, 8, 11, 14, 20, 40, math.huge }
+print("| posterior log-odds | rows | wrong | current map | fitted map |")
+print("|---|---:|---:|---:|---:|")
+for b = 1, #edges - 1 do
+  local n, wrong = 0, 0
+  for r = 1, #L do
+    if L[r] >= edges[b] and L[r] < edges[b + 1] then
+      n = n + 1
+      if not right[r] then wrong = wrong + 1 end
+    end
+  end
+  local mid = edges[b + 1] == math.huge and edges[b] or 0.5 * (edges[b] + edges[b + 1])
+  print(("| %g–%g | %d | %.3f %% | %.3f %% | %.3f %% |"):format(edges[b], edges[b + 1], n,
+    100 * wrong / math.max(n, 1), 100 * (1 - logistic(map(mid, cur_knots, cur_values))),
+    100 * (1 - logistic(map(mid, knots, values)))))
+end

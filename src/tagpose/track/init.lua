@@ -58,10 +58,10 @@
 -- measured). A frame's evidence and measurement take the estimate from before it.
 --
 -- **The confidence** returned is the filter's posterior probability of the chosen candidate,
--- calibrated by an increasing map of its log-odds (`CONFIDENCE`), fitted on the synthetic
--- sequences with the evidence above (a different evidence function needs its own): the
--- posterior is overconfident (its log-odds are about twice what the frames bear out), and
--- beyond 99.9 % a wrong branch is rare but not rarer.
+-- calibrated by an increasing map of its log-odds (`CONFIDENCE`), fitted on synthetic
+-- sequences with the evidence above (`bench/fit_confidence.lua`; a different evidence function
+-- needs its own): up to log-odds 6 the posterior is a little overconfident (by a tenth), and
+-- beyond 99.99 % a wrong branch is rare but not rarer.
 --
 -- **The state** of a track is a record (`new_state`; `pose.track` of a tracked solve): `time`
 -- (s) of its frame, `sigma2` and `dof` (px² and degrees of freedom: the running noise
@@ -123,8 +123,9 @@ M.NOISE_SIGMA = 0.5
 M.NOISE_FLOOR = 1e-4
 -- The calibration of the confidence (`M.CONFIDENCE`): pairs (posterior log-odds, confidence
 -- log-odds) of a piecewise-linear increasing map, fitted to the reliability of the posterior
--- on synthetic sequences (see the module's header).
-M.CONFIDENCE = { 0, 0, 6, 2.75, 11, 2.9, 14, 7.5, 40, 9 }
+-- on synthetic sequences (see the module's header): `bench/fit_confidence.lua` on
+-- `bench/make_sequences.lua` seeds 2101-2116 (the dev set's seven kinds).
+M.CONFIDENCE = { 0, 0, 6, 5.4, 11, 8.42, 14, 9, 40, 9 }
 --- Slope of the confidence's calibration beyond its last pair.
 M.CONFIDENCE_TAIL = 0.05
 --- Bounds on the time between frames (s).
