@@ -22,7 +22,7 @@
 -- candidate it chose. Only this module reads or writes it.
 -- @module tagpose.track.filter
 
-local sqrt, exp, log = math.sqrt, math.exp, math.log
+local sqrt, exp, log, min, max = math.sqrt, math.exp, math.log, math.min, math.max
 
 local M = {}
 
@@ -66,11 +66,12 @@ end
 
 -- The log of the share of the children of one hypothesis that choose the first candidate, and
 -- of those that choose the second, when their candidates lie at d1 and d2 (their exponents)
--- from its prediction: -log(1 + e^(d1 - d2)) and -log(1 + e^(d2 - d1)).
+-- from its prediction: -log(1 + e^(d1 - d2)) and -log(1 + e^(d2 - d1)). (Without a branch,
+-- the difference held within ±700 by min and max: on LuaJIT a side exit here, in branch's
+-- loop, is a trace that cannot be compiled, and a hypothesis far from one candidate takes it
+-- often.)
 local function shares(d1, d2)
-  local d = d1 - d2
-  if d > 36 then return -d, 0 end
-  if d < -36 then return 0, d end
+  local d = min(max(d1 - d2, -700), 700)
   local soft = log(1 + exp(d))
   return -soft, d - soft
 end
