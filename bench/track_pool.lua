@@ -20,8 +20,9 @@
 --
 -- Coverage: the share of rows whose truth lies inside the 95 % region of the returned pose's
 -- covariance: the 6-dof ellipsoid (Mahalanobis² < 12.59) and each position axis's interval
--- (|error| < 1.96 sd); printed for all rows, for rows on the right and on the wrong branch, for
--- the first N frames of a track (`--first`, default 5) and the others, and for the true-branch
+-- (|error| < 1.96 sd); printed for all rows, for rows on the right and on the wrong branch (the
+-- returned pose the candidate farther from the truth), for the flipped rows (more than 30° off),
+-- for the first N frames of a track (`--first`, default 5) and the others, and for the true-branch
 -- candidate (of the pose and its alternative, the nearer the truth) as docs/uncertainty.md
 -- scores a single frame. `--dump FILE` writes every row's pose, confidence and smoothed choice
 -- with 17 digits (for checking that a change leaves them bit for bit). `--quick` leaves out the
@@ -186,8 +187,8 @@ end
 
 local pooled = { rows = 0, single = 0, tracked = 0, smoothed = 0, oracle = 0, oracle_s = 0 }
 local kinds, kind_order = {}, {}
-local cov = { all = counter(), right = counter(), wrong = counter(), early = counter(),
-  late = counter(), true_branch = counter() }
+local cov = { all = counter(), right = counter(), wrong = counter(), flipped = counter(),
+  early = counter(), late = counter(), true_branch = counter() }
 local dump = opt.dump and assert(io.open(opt.dump, "w"))
 
 local function kind_row(name)
@@ -266,6 +267,7 @@ local function run(dir)
         local c = p.covariance
         cover(cov.all, c, e)
         cover(right and cov.right or cov.wrong, c, e)
+        if ep > 30 then cover(cov.flipped, c, e) end
         age[key] = (age[key] or 0) + 1
         cover(age[key] <= opt.first and cov.early or cov.late, c, e)
         if right then
@@ -368,7 +370,8 @@ print()
 print("| coverage of | rows | 6-dof % | x % | y % | z % | M² mean |")
 print("|---|---:|---:|---:|---:|---:|---:|")
 for _, c in ipairs({ { "returned pose", cov.all }, { "right branch", cov.right },
-  { "wrong branch", cov.wrong }, { ("first %d frames"):format(opt.first), cov.early },
+  { "wrong branch", cov.wrong }, { "flipped (> 30° off)", cov.flipped },
+  { ("first %d frames"):format(opt.first), cov.early },
   { "later frames", cov.late }, { "true-branch candidate", cov.true_branch } }) do
   local k = c[2]
   print(("| %s | %d | %s | %s | %s | %s | %.2f |"):format(c[1], k.n, pct(k.six, k.n),

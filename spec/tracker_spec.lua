@@ -292,4 +292,80 @@ describe("tagpose.tracker", function()
       assert.equal(0, confidence[1])
     end)
   end)
+
+  describe("the commands of docs/tracking.md and docs/uncertainty.md", function()
+    local run = require("support.run")
+    local dir
+
+    setup(function()
+      dir = os.tmpname()
+      os.remove(dir)
+      local out, status = run.script("bench/make_sequences.lua", dir .. "/s", "2", "3101",
+        "--kinds", "far_hover,far_wobble", "--frames", "40", "--camera", "random")
+      assert(status == 0, out)
+    end)
+
+    teardown(function()
+      run.run("rm -rf " .. run.quote(dir))
+    end)
+
+    it("pools the tracker's figures by kind, per set, with a constant set", function()
+      local out, status = run.script("bench/track_pool.lua", dir, "--kinds")
+      assert.equal(0, status, out)
+      assert.matches("| far_wobble | 40 |", out, 1, true)
+      assert.matches("| **all** | 80 |", out, 1, true)
+      assert.matches("| flipped (> 30° off) |", out, 1, true)
+      assert.matches("| true-branch candidate | 80 |", out, 1, true)
+      out, status = run.script("bench/track_pool.lua", dir, "--quick", "--by-set", "--sigma", "0.5",
+        "--set", "PROCESS=0.03")
+      assert.equal(0, status, out)
+      assert.matches("set " .. dir .. "/s rows 80 tracked", out, 1, true)
+      assert.is_nil(out:find("coverage of", 1, true))
+      out, status = run.script("bench/track_pool.lua", dir, "--set", "NOPE=1")
+      assert.equal(2, status, out)
+    end)
+
+    it("fits the confidence map and scores the tracker's confidence and covariance", function()
+      local out, status = run.script("bench/fit_confidence.lua", dir)
+      assert.equal(0, status, out)
+      assert.matches("M.CONFIDENCE = { 0, 0.00, 6, ", out, 1, true)
+      assert.matches("| posterior log-odds | rows | wrong |", out, 1, true)
+      for _, mode in ipairs({ "--track", "--smooth" }) do
+        out, status = run.script("examples/accuracy.lua", dir .. "/s", mode)
+        assert.equal(0, status, out)
+        assert.matches("confidence: ECE", out, 1, true)
+      end
+      for _, extra in ipairs({ "--sigma", "--default-sigma", "--prior" }) do
+        -- (--track with the set's σ given, with σ estimated; and a chain of options.prior)
+        if extra == "--prior" then
+          out, status = run.script("examples/uncertainty.lua", dir .. "/s", "--prior")
+        elseif extra == "--sigma" then
+          out, status = run.script("examples/uncertainty.lua", dir .. "/s", "--track")
+        else
+          out, status = run.script("examples/uncertainty.lua", dir .. "/s", "--track", extra)
+        end
+        assert.equal(0, status, out)
+        assert.matches("rows    80  coverage", out, 1, true)
+        assert.matches("(returned ", out, 1, true)
+      end
+    end)
+
+    it("adds noise to a real log and tables its rows by track age", function()
+      local out, status = run.script("bench/real_noise.lua", "--sigma", "2", "--seeds", "1",
+        "--from", "16", "--quick", "--by-age", "bench/realdata/builderbot-exp-13")
+      assert.equal(0, status, out)
+      assert.matches("seeds 16..16", out, 1, true)
+      assert.matches("| 2 | **all** | 873 |", out, 1, true)
+      assert.matches("| track age (frames) | rows |", out, 1, true)
+    end)
+
+    it("runs the rows whose instructions bench/track_instructions.sh counts", function()
+      for _, mode in ipairs({ "plain", "tracker" }) do
+        local out, status = run.script("bench/track_instructions.lua", mode, "5")
+        assert.equal(0, status, out)
+      end
+      local out, status = run.run("bash -n bench/track_instructions.sh 2>&1")
+      assert.equal(0, status, out)
+    end)
+  end)
 end)
