@@ -207,17 +207,26 @@ local function add(name, field, v)
   k[field] = k[field] + v
 end
 
-local function run(dir)
-  local camera, info = assert(log.read_camera(dir .. "/camera.lua"))
-  local rows = assert(log.read_corners(dir .. "/corners.csv"))
-  local truth = assert(log.read_csv(dir .. "/truth.csv"))
-  assert(#truth == #rows, dir .. ": truth and corners differ in length")
-  local sigma, by_track, by_sequence = read_meta(dir)
-  local given = opt.sigma or (opt.meta_sigma and sigma) or nil
-  local s2 = (sigma or 0.5) ^ 2
-  local tr = tagpose.tracker.new(camera, info.tag_size, { smooth = true, sigma = given })
-  local single_opts = { sigma = given }
-  local rec = {} -- per row
+-- Count one row's coverage: the returned pose p (error e), flipped or not, on the right branch
+-- or not, at its track's age; and the true-branch candidate's (the alternative's, error ea).
+local function cover_row(p, e, flipped, right, age, alt, ea)
+  local c = p.covariance
+  cover(cov.all, c, e)
+  cover(right and cov.right or cov.wrong, c, e)
+  if flipped then cover(cov.flipped, c, e) end
+  cover(age <= opt.first and cov.early or cov.late, c, e)
+  if right then
+    cover(cov.true_branch, c, e)
+  else
+    cover(cov.true_branch, alt.covariance, ea)
+  end
+end
+
+-- The rows fed frame by frame to a tracker: per row {pose =, track =, new =}, and the
+-- smoothed choices.
+local function tracked(camera, size, sigma, rows)
+  local tr = tagpose.tracker.new(camera, size, { smooth = true, sigma = sigma })
+  local rec = {}
   local i = 1
   while i <= #rows do
     local j, frame = i, {}
@@ -227,12 +236,39 @@ local function run(dir)
     end
     local seen = tr:update(frame, rows[i].fields.time or rows[i].frame / 30)
     for k = 1, #seen do
-      local r = i + k - 1
-      rec[r] = { pose = seen[k].pose, track = seen[k].track, new = seen[k].new }
+      rec[i + k - 1] = { pose = seen[k].pose, track = seen[k].track, new = seen[k].new }
     end
     i = j
   end
-  local choice = tr:smooth()
+  return rec, tr:smooth()
+end
+
+-- The smoothed oracle: the whole track's evidence decides its rows at stake.
+local function smoothed_oracle(rec, rows_of, evid)
+  for key, list in pairs(rows_of) do
+    local total = evid[key]
+    for _, r in ipairs(list) do
+      local x = rec[r]
+      local w = x.wrong_o
+      if x.stake then w = total > 0 and 0 or (total == 0 and 0.5 or 1) end
+      add(x.name, "oracle_s", w)
+    end
+  end
+  for r = 1, #rec do
+    if not rec[r].pose then add(rec[r].name, "oracle_s", 1) end
+  end
+end
+
+local function run(dir)
+  local camera, info = assert(log.read_camera(dir .. "/camera.lua"))
+  local rows = assert(log.read_corners(dir .. "/corners.csv"))
+  local truth = assert(log.read_csv(dir .. "/truth.csv"))
+  assert(#truth == #rows, dir .. ": truth and corners differ in length")
+  local sigma, by_track, by_sequence = read_meta(dir)
+  local given = opt.sigma or (opt.meta_sigma and sigma) or nil
+  local s2 = (sigma or 0.5) ^ 2
+  local single_opts = { sigma = given }
+  local rec, choice = tracked(camera, info.tag_size, given, rows)
   local age, evid = {}, {} -- per track: frames so far, the oracle's evidence so far
   local rows_of = {} -- per track: its rows
   for r = 1, #rows do
@@ -264,17 +300,8 @@ local function run(dir)
       -- coverage of the returned pose
       local right = not alt or ep <= eaa
       if not opt.quick then
-        local c = p.covariance
-        cover(cov.all, c, e)
-        cover(right and cov.right or cov.wrong, c, e)
-        if ep > 30 then cover(cov.flipped, c, e) end
         age[key] = (age[key] or 0) + 1
-        cover(age[key] <= opt.first and cov.early or cov.late, c, e)
-        if right then
-          cover(cov.true_branch, c, e)
-        else
-          cover(cov.true_branch, alt.covariance, ea)
-        end
+        cover_row(p, e, ep > 30, right, age[key], alt, ea)
       end
       -- the oracle: this frame's evidence for the true branch
       local llr = 0
@@ -322,19 +349,7 @@ local function run(dir)
       end
     end
   end
-  -- the smoothed oracle: the whole track's evidence
-  for key, list in pairs(rows_of) do
-    local total = evid[key]
-    for _, r in ipairs(list) do
-      local x = rec[r]
-      local w = x.wrong_o
-      if x.stake then w = total > 0 and 0 or (total == 0 and 0.5 or 1) end
-      add(x.name, "oracle_s", w)
-    end
-  end
-  for r = 1, #rows do
-    if not rec[r].pose then add(rec[r].name, "oracle_s", 1) end
-  end
+  smoothed_oracle(rec, rows_of, evid)
 end
 
 local sets = sets_of(opt.dirs)
