@@ -1,7 +1,8 @@
 -- The real-trajectory test of the tracking filter: the real BuilderBot corner logs with
 -- Gaussian noise added to every corner, scored against the clean log's own poses.
 --
---   lua5.4 bench/real_noise.lua [--sigma 2,3] [--seeds N] [--frame-time S] [DIR ...]
+--   lua5.4 bench/real_noise.lua [--sigma 2,3] [--seeds N] [--from K] [--frame-time S]
+--     [--quick] [--by-age] [--set NAME=VALUE] [DIR ...]
 --
 -- DIR: data sets in the format of bench/realdata (camera.lua and corners.csv each;
 -- default: every bench/realdata/builderbot-*). There is no ground
@@ -19,6 +20,12 @@
 --
 -- A row is wrong when its rotation is more than 30° from the clean pose's, or when no pose
 -- came out (counted apart as `failed`). Run from the repository root.
+--
+-- `--from K` draws the noise of seeds K..K+N-1 (default 1: the figures of docs/tracking.md are
+-- seeds 1..5; choose on other seeds). `--quick` leaves out `single` and `prior`. `--by-age`
+-- adds a table of the tracked rows by the age of their track (frames since it started) and
+-- how confident the wrong ones were. `--set NAME=VALUE` sets a `tagpose.track` constant (for
+-- measuring it).
 
 package.path = "./src/?.lua;./src/?/init.lua;./spec/?.lua;" .. package.path
 local tagpose = require("tagpose")
@@ -30,11 +37,14 @@ local deg = math.deg
 
 local function usage(msg)
   io.stderr:write((msg and msg .. "\n" or "") .. "usage: lua bench/real_noise.lua "
-    .. "[--sigma 2,3] [--seeds N] [--frame-time S] [DIR ...]\n")
+    .. "[--sigma 2,3] [--seeds N] [--from K] [--frame-time S] [--quick] [--by-age] "
+    .. "[--set NAME=VALUE] [DIR ...]\n")
   os.exit(2)
 end
 
-local opt = { sigmas = { 2, 3 }, seeds = 5, frame_time = 0.095, dirs = {} }
+local track = require("tagpose.track")
+
+local opt = { sigmas = { 2, 3 }, seeds = 5, from = 1, frame_time = 0.095, dirs = {} }
 do
   local i = 1
   while i <= #arg do
@@ -48,6 +58,20 @@ do
     elseif a == "--seeds" then
       i = i + 1
       opt.seeds = tonumber(arg[i]) or usage("--seeds needs a number")
+    elseif a == "--from" then
+      i = i + 1
+      opt.from = tonumber(arg[i]) or usage("--from needs a number")
+    elseif a == "--quick" then
+      opt.quick = true
+    elseif a == "--by-age" then
+      opt.by_age = true
+    elseif a == "--set" then
+      i = i + 1
+      local name, value = (arg[i] or ""):match("^([%u_%d]+)=([-%d.eE+]+)$")
+      if not name or type(track[name]) ~= "number" then
+        usage("--set NAME=NUMBER (a tagpose.track constant)")
+      end
+      track[name] = tonumber(value)
     elseif a == "--frame-time" then
       i = i + 1
       opt.frame_time = tonumber(arg[i]) or usage("--frame-time needs a number")
@@ -85,6 +109,24 @@ local function wrong(row, pose)
   return not pose or deg(rotation.angle(row.clean, rotation_of(pose))) > 30
 end
 
+-- the tracked rows by the age of their track: {first, last, rows, wrong, confident}
+local AGES = { { 1, 1 }, { 2, 3 }, { 4, 10 }, { 11, 30 }, { 31, math.huge } }
+local ages = {}
+for k = 1, #AGES do ages[k] = { rows = 0, wrong = 0, confident = 0 } end
+
+local function by_age(age, is_wrong, confidence)
+  for k = 1, #AGES do
+    if age >= AGES[k][1] and age <= AGES[k][2] then
+      local a = ages[k]
+      a.rows = a.rows + 1
+      if is_wrong then
+        a.wrong = a.wrong + 1
+        if confidence and confidence >= 0.9 then a.confident = a.confident + 1 end
+      end
+    end
+  end
+end
+
 -- the four ways over noisy corners; returns counts {single =, prior =, tracked =, smoothed =,
 -- failed =}
 local function score(camera, info, rows, noisy)
@@ -92,26 +134,33 @@ local function score(camera, info, rows, noisy)
   local last = {} -- tag -> {frame =, pose =}
   local has_tracker = tagpose.tracker ~= nil
   local tr = has_tracker and tagpose.tracker.new(camera, info.tag_size, { smooth = true })
-  local tracked = {}
+  local tracked, age, counts = {}, {}, {}
   local i = 1
   while i <= #rows do
     local j, frame = i, {}
     while j <= #rows and rows[j].frame == rows[i].frame do
       local r = rows[j]
       frame[#frame + 1] = { id = r.tag, corners = noisy[j] }
-      local single = tagpose.solve(noisy[j], camera, info.tag_size)
-      if not single then n.failed = n.failed + 1 end
-      if wrong(r, single) then n.single = n.single + 1 end
-      local prev = last[r.tag]
-      local prior = prev and prev.frame == r.frame - 1 and prev.pose or nil
-      local pose = tagpose.solve(noisy[j], camera, info.tag_size, { prior = prior })
-      if wrong(r, pose) then n.prior = n.prior + 1 end
-      last[r.tag] = { frame = r.frame, pose = pose }
+      if not opt.quick then
+          local single = tagpose.solve(noisy[j], camera, info.tag_size)
+        if not single then n.failed = n.failed + 1 end
+        if wrong(r, single) then n.single = n.single + 1 end
+        local prev = last[r.tag]
+        local prior = prev and prev.frame == r.frame - 1 and prev.pose or nil
+        local pose = tagpose.solve(noisy[j], camera, info.tag_size, { prior = prior })
+        if wrong(r, pose) then n.prior = n.prior + 1 end
+        last[r.tag] = { frame = r.frame, pose = pose }
+      end
       j = j + 1
     end
     if tr then
       local seen = tr:update(frame, rows[i].frame * opt.frame_time)
-      for k = 1, #seen do tracked[i + k - 1] = seen[k].pose or false end
+      for k = 1, #seen do
+        tracked[i + k - 1] = seen[k].pose or false
+        local t = seen[k].track
+        if t then counts[t] = (counts[t] or 0) + 1 end
+        age[i + k - 1] = t and counts[t] or 1
+      end
     end
     i = j
   end
@@ -119,7 +168,9 @@ local function score(camera, info, rows, noisy)
     local choice = tr:smooth()
     for r = 1, #rows do
       local pose = tracked[r] or nil
-      if wrong(rows[r], pose) then n.tracked = n.tracked + 1 end
+      local is_wrong = wrong(rows[r], pose)
+      if is_wrong then n.tracked = n.tracked + 1 end
+      by_age(age[r], is_wrong, pose and pose.confidence)
       if choice[r] == 2 then pose = pose.alternative end
       if wrong(rows[r], pose) then n.smoothed = n.smoothed + 1 end
     end
@@ -137,8 +188,9 @@ for _, dir in ipairs(opt.dirs) do
     rows = rows }
   total_rows = total_rows + #rows
 end
-print(("%d rows in %d logs; noise σ %s px, seeds 1..%d, frames %g s apart [%s]"):format(
-  total_rows, #sets, table.concat(opt.sigmas, ", "), opt.seeds, opt.frame_time, _VERSION
+print(("%d rows in %d logs; noise σ %s px, seeds %d..%d, frames %g s apart [%s]"):format(
+  total_rows, #sets, table.concat(opt.sigmas, ", "), opt.from, opt.from + opt.seeds - 1,
+  opt.frame_time, _VERSION
   .. (rawget(_G, "jit") and " (LuaJIT)" or "")))
 print("| σ px | log | rows | single % | prior % | tracked % | smoothed % | failed |")
 print("|---:|---|---:|---:|---:|---:|---:|---:|")
@@ -150,7 +202,7 @@ for _, sigma in ipairs(opt.sigmas) do
   local all = { single = 0, prior = 0, tracked = 0, smoothed = 0, failed = 0, rows = 0 }
   for _, set in ipairs(sets) do
     local sum = { single = 0, prior = 0, tracked = 0, smoothed = 0, failed = 0 }
-    for seed = 1, opt.seeds do
+    for seed = opt.from, opt.from + opt.seeds - 1 do
       local rng = geometry.rng(1000 * seed + math.floor(sigma * 100) + #set.rows)
       local noisy = {}
       for r, row in ipairs(set.rows) do
@@ -178,4 +230,15 @@ for _, sigma in ipairs(opt.sigmas) do
   print(("| %g | **all** | %d | %s | %s | %s | %s | %d |"):format(sigma, all.rows,
     pct(all.single, all.rows), pct(all.prior, all.rows), pct(all.tracked or nil, all.rows),
     pct(all.smoothed or nil, all.rows), all.failed))
+end
+if opt.by_age then
+  print()
+  print("| track age (frames) | rows | tracked wrong % | wrong with confidence >= 0.9 |")
+  print("|---|---:|---:|---:|")
+  for k, a in ipairs(ages) do
+    local range = AGES[k][2] == math.huge and (AGES[k][1] .. "+")
+      or AGES[k][1] == AGES[k][2] and tostring(AGES[k][1]) or (AGES[k][1] .. "–" .. AGES[k][2])
+    print(("| %s | %d | %s | %d |"):format(range, a.rows, pct(a.wrong, math.max(a.rows, 1)),
+      a.confident))
+  end
 end

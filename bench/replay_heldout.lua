@@ -52,7 +52,7 @@ local function replay(set, mode)
   local out = ("%s/%s-%s.csv"):format(dir, (set:match("[^/]+/[^/]+$"):gsub("/", "_")), mode)
   local text = sh(table.concat({ quote(lua), "bin/tagpose-replay", quote(set .. "/corners.csv"),
     "--" .. mode, "--compare", quote(set .. "/truth.csv"), "--out", quote(out) }, " "))
-  local matched, apart = text:match(": (%d+) rows matched; .-; (%d+) rows %([%d.]+ %%%) more")
+  local matched, apart = text:match(": (%d+) rows? matched; .-; (%d+) rows? %([%d.]+ %%%) more")
   assert(matched, text)
   local poses = assert(log.read_csv(out))
   local truth = assert(log.read_csv(set .. "/truth.csv"))

@@ -1,23 +1,22 @@
 -- How far to trust tagpose's poses: coverage of pose.covariance and calibration of
 -- pose.confidence on a data set with ground truth (the format of bench/dev).
 --
---   lua5.4 examples/uncertainty.lua DATASET_DIR [--sigma S | --default-sigma] [--track]
---     [--kappa K] [--spread S] [--default S,DOF] [--bins] [--textbook] [--ellipsoid]
+--   lua5.4 examples/uncertainty.lua DATASET_DIR [--sigma S | --default-sigma]
+--     [--track | --prior] [--kappa K] [--spread S] [--default S,DOF] [--bins] [--textbook]
 --
 -- DATASET_DIR may also be a directory of data sets (each subdirectory with corners.csv and
 -- truth.csv, or a layout set's truth_layout.csv, is scored). σ is --sigma when given, else each
 -- set's meta.json noise.sigma_px (a layout set's sigma_px; passed as options.sigma; a set
 -- without one, or with 0, and every set with --default-sigma, is solved without it: the
--- library's default). With --track each tag's pose of the previous frame (frame - 1) is passed
--- as options.prior. --kappa and --spread override tagpose.uncertainty.KAPPA and SPREAD, and
--- --default S,DOF its DEFAULT_SIGMA and DEFAULT_DOF (with --default-sigma), for measuring them
--- (the κ table is made for DEFAULT_DOF = 8: with another it is exact only from 10 dof on,
+-- library's default). With --track the rows are fed frame by frame to tagpose.tracker (σ as
+-- its options.sigma; frame times from the log's `time` column, else frame / 30); with --prior
+-- each tag's pose of the previous frame (frame - 1) is passed as options.prior to
+-- tagpose.solve instead. --kappa and --spread override tagpose.uncertainty.KAPPA and SPREAD,
+-- and --default S,DOF its DEFAULT_SIGMA and DEFAULT_DOF (with --default-sigma), for measuring
+-- them (the κ table is made for DEFAULT_DOF = 8: with another it is exact only from 10 dof on,
 -- for blocks and layouts with a fit of several tags in view); --bins prints the calibration
 -- bins; --textbook scores the textbook covariance σ² H⁻¹ at each candidate instead of
--- pose.covariance (H from tagpose.refine.normal at the candidate's pose), for comparison;
--- --ellipsoid scores a tag solved without σ with its covariance times
--- tagpose.uncertainty.ellipsoid(2), the factor that blocks and layouts give a covariance whose
--- σ² is one tag's estimate and tagpose.solve does not.
+-- pose.covariance (H from tagpose.refine.normal at the candidate's pose), for comparison.
 --
 -- Per set it prints:
 --   coverage   rows whose true pose lies inside the 95 % ellipsoid of the candidate on the true
@@ -25,6 +24,9 @@
 --              truth): 6-dof Mahalanobis² < 12.59, the error as (t_true - t, r) with
 --              R_true = exp([r]×) R, against pose.covariance;
 --   M² mean    the mean of that Mahalanobis² (6 for a Gaussian the covariance describes);
+--   x y z      the share of rows whose true position lies inside that candidate's 95 %
+--              interval on each axis (|error| < 1.96 sd), and, after "returned", the same for
+--              the pose returned (whichever branch it is on);
 --   ECE        expected calibration error of pose.confidence (10 equal bins over [0, 1]) over
 --              the rows whose two candidates differ by more than 10°, "right" meaning the
 --              returned pose is the true-branch candidate;
@@ -54,8 +56,8 @@ local atan2 = require("tagpose.core.compat").atan2
 
 local function usage(msg)
   io.stderr:write((msg and msg .. "\n" or "") .. "usage: lua examples/uncertainty.lua "
-    .. "DATASET_DIR [--sigma S | --default-sigma] [--track] [--kappa K] [--spread S] "
-    .. "[--default S,DOF] [--bins] [--textbook] [--ellipsoid]\n")
+    .. "DATASET_DIR [--sigma S | --default-sigma] [--track | --prior] [--kappa K] "
+    .. "[--spread S] [--default S,DOF] [--bins] [--textbook]\n")
   os.exit(2)
 end
 
@@ -83,12 +85,12 @@ do
       opts.default_sigma = true
     elseif a == "--track" then
       opts.track = true
+    elseif a == "--prior" then
+      opts.prior = true
     elseif a == "--bins" then
       opts.bins = true
     elseif a == "--textbook" then
       opts.textbook = true
-    elseif a == "--ellipsoid" then
-      opts.ellipsoid = true
     elseif a:sub(1, 2) == "--" then
       usage("unknown option " .. a)
     elseif not opts.dir then
@@ -187,24 +189,57 @@ local function calibration(conf, right)
   return ece, wrong, high, bins
 end
 
+-- The poses of a tag set's rows: one solve per row; with --prior the previous frame's pose of
+-- the same tag as options.prior; with --track the tracker fed frame by frame.
+local function poses_of(rows, camera, tag_size, sigma)
+  local poses = {}
+  if opts.track then
+    local tr = tagpose.tracker.new(camera, tag_size, { sigma = sigma })
+    local i = 1
+    while i <= #rows do
+      local j, frame = i, {}
+      while j <= #rows and rows[j].frame == rows[i].frame do
+        frame[#frame + 1] = { id = rows[j].tag, corners = rows[j].corners }
+        j = j + 1
+      end
+      local seen = tr:update(frame, rows[i].fields.time or rows[i].frame / 30)
+      for k = 1, #seen do poses[i + k - 1] = seen[k].pose or false end
+      i = j
+    end
+    return poses
+  end
+  local options = { sigma = sigma }
+  local last = {}
+  for i, row in ipairs(rows) do
+    if opts.prior then
+      local prev = last[row.tag]
+      options.prior = prev and prev.frame == row.frame - 1 and prev.pose or nil
+    end
+    local pose = tagpose.solve(row.corners, camera, tag_size, options)
+    poses[i] = pose or false
+    if pose then last[row.tag] = { frame = row.frame, pose = pose } end
+  end
+  return poses
+end
+
+-- 1 when |e[i]| is inside the 95 % interval of C's i-th diagonal, else 0
+local function in_interval(C, e, i)
+  return math.abs(e[i]) < 1.96 * sqrt(C[i][i]) and 1 or 0
+end
+
 local function score_tags(dir, sigma)
   local camera, info = assert(log.read_camera(dir .. "/camera.lua"))
   local tag_size = info.tag_size
   local rows = assert(log.read_corners(dir .. "/corners.csv"))
   local truth = assert(log.read_csv(dir .. "/truth.csv"))
   assert(#truth == #rows, "truth and corners differ in length")
-  local options = { sigma = sigma }
-  local last = {}
+  local poses = poses_of(rows, camera, tag_size, sigma)
   local n, covered, m2sum = 0, 0, 0
+  local axes, returned, returned_axes = { 0, 0, 0 }, 0, { 0, 0, 0 }
   local conf, right = {}, {}
   for i, row in ipairs(rows) do
-    if opts.track then
-      local prev = last[row.tag]
-      options.prior = prev and prev.frame == row.frame - 1 and prev.pose or nil
-    end
-    local pose = tagpose.solve(row.corners, camera, tag_size, options)
+    local pose = poses[i]
     if pose then
-      last[row.tag] = { frame = row.frame, pose = pose }
       local tr = truth[i]
       local rt = rotation.from_quaternion(tr.qw, tr.qx, tr.qy, tr.qz)
       local tt = { tr.x, tr.y, tr.z }
@@ -227,10 +262,15 @@ local function score_tags(dir, sigma)
           {})
       end
       local m2 = mahalanobis(cov, be, 6) or math.huge
-      if opts.ellipsoid and not sigma then m2 = m2 / uncertainty.ellipsoid(2) end
       n = n + 1
       m2sum = m2sum + m2
       if m2 < 12.59 then covered = covered + 1 end
+      local own = opts.textbook and best == pose and cov or pose.covariance
+      if (mahalanobis(own, e, 6) or math.huge) < 12.59 then returned = returned + 1 end
+      for k = 1, 3 do
+        axes[k] = axes[k] + in_interval(cov, be, k)
+        returned_axes[k] = returned_axes[k] + in_interval(own, e, k)
+      end
       if alt and deg(rotation.angle(rotation.from_nested(pose.rotation),
         rotation.from_nested(alt.rotation))) > 10 then
         conf[#conf + 1] = pose.confidence
@@ -239,9 +279,12 @@ local function score_tags(dir, sigma)
     end
   end
   local ece, wrong, high, bins = calibration(conf, right)
-  return { rows = #rows, n = n, coverage = 100 * covered / math.max(n, 1),
-    m2 = m2sum / math.max(n, 1), ece = ece, wrong = wrong, high = high, ambiguous = #conf,
-    bins = bins }
+  local d = math.max(n, 1)
+  return { rows = #rows, n = n, coverage = 100 * covered / d,
+    m2 = m2sum / d, ece = ece, wrong = wrong, high = high, ambiguous = #conf,
+    bins = bins, x = 100 * axes[1] / d, y = 100 * axes[2] / d, z = 100 * axes[3] / d,
+    returned = 100 * returned / d, rx = 100 * returned_axes[1] / d,
+    ry = 100 * returned_axes[2] / d, rz = 100 * returned_axes[3] / d }
 end
 
 -- the angle between two block rotations modulo the cube's 24 symmetries
@@ -394,10 +437,11 @@ local function run(dir)
     return print_bins(s)
   end
   local s = score_tags(dir, sigma)
-  print(("%-12s σ %-7s rows %5d  coverage %5.1f %%  M² mean %5.2f  |  %4d ambiguous rows: "
-    .. "ECE %.3f  wrong@.95 %.2f %% (%d of %d)"):format(name, sigma and ("%g"):format(sigma)
-    or "default", s.n, s.coverage, s.m2, s.ambiguous, s.ece, 100 * s.wrong / math.max(s.high, 1),
-    s.wrong, s.high))
+  print(("%-12s σ %-7s rows %5d  coverage %5.1f %%  M² mean %5.2f  x y z %.1f %.1f %.1f %%  "
+    .. "(returned %.1f; %.1f %.1f %.1f %%)  |  %4d ambiguous rows: ECE %.3f  wrong@.95 %.2f %% "
+    .. "(%d of %d)"):format(name, sigma and ("%g"):format(sigma) or "default", s.n, s.coverage,
+    s.m2, s.x, s.y, s.z, s.returned, s.rx, s.ry, s.rz, s.ambiguous, s.ece,
+    100 * s.wrong / math.max(s.high, 1), s.wrong, s.high))
   print_bins(s)
 end
 
@@ -414,7 +458,8 @@ print_bins = function(s)
 end
 
 print(("tagpose uncertainty, %s%s, KAPPA %g%s"):format(_VERSION,
-  rawget(_G, "jit") and " (LuaJIT)" or "", uncertainty.KAPPA, opts.track and ", --track" or ""))
+  rawget(_G, "jit") and " (LuaJIT)" or "", uncertainty.KAPPA, opts.track and ", --track"
+  or opts.prior and ", --prior" or ""))
 if exists(opts.dir .. "/corners.csv") or exists(opts.dir .. "/truth_layout.csv") then
   run(opts.dir)
 else

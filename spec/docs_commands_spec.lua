@@ -29,7 +29,8 @@ local function is_command(line)
 end
 
 -- the shell lines of a code block: commands (continuations joined), loops, assignments
-local SHELL = { "^for ", "^do$", "^done", "^[%u_][%u%d_]*=", "^#", "^cd " }
+local SHELL = { "^for ", "^do$", "^done", "^[%a_][%w_]*=", "^#", "^cd ", "^%[ ", "^if ",
+  "^then", "^else", "^fi" }
 local function shell_line(line, open)
   if is_command(line) or line:match("^[%u_][%u%d_]*=") then return true end
   if not open then return false end -- a block starts with a command (a Lua `for` does not)
@@ -44,7 +45,7 @@ end
 -- not succeed: it shows a refusal).
 local function commands(page)
   local out, block, first, shown = {}, nil, nil, nil
-  local n, fenced, after_dollar = 0, false, false
+  local n, fenced, after_dollar, shell = 0, false, false, false
   local function close()
     if block and #block > 0 then
       out[#out + 1] = { page = page, line = first, text = table.concat(block, "\n"),
@@ -58,6 +59,8 @@ local function commands(page)
     if line:match("^%s*```") then
       close()
       fenced = not fenced
+      -- a block marked as shell is shell from its first line (a loop may open it)
+      shell = fenced and (line:match("^%s*```sh%s*$") or line:match("^%s*```bash%s*$")) ~= nil
     else
       local code = fenced and line or line:match("^    (.*)$")
       if code then
@@ -68,7 +71,7 @@ local function commands(page)
         local continued = block and block[#block] and block[#block]:match("\\$")
         if continued then
           block[#block] = block[#block]:gsub("\\$", "") .. " " .. code
-        elseif code ~= "" and shell_line(code, block ~= nil) and not after_dollar then
+        elseif code ~= "" and shell_line(code, block ~= nil or shell) and not after_dollar then
           if not block then block, first = {}, n end
           block[#block + 1] = code
         elseif dollar then

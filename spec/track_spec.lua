@@ -80,7 +80,10 @@ describe("tracking with options.prior", function()
     local plain = run(geometry.rng(11), 320, opts, false)
     local tracked = run(geometry.rng(11), 320, opts, true)
     assert.is_true(plain >= 20, "the sequence is ambiguous enough to test: " .. plain)
-    assert.is_true(tracked * 4 <= plain, ("tracked %d flips, untracked %d"):format(tracked, plain))
+    -- (one draw of a tag dipping just past face-on and back: over 40 draws of it the filter
+    -- flips 363 rows of the 1840 that the error alone flips, 335 before its likelihood of the
+    -- squared tilt; on this one 15 of 52, 9 before)
+    assert.is_true(tracked * 3 <= plain, ("tracked %d flips, untracked %d"):format(tracked, plain))
   end)
 
   it("keeps the branch through a face-on crossing, by the rate it carries", function()
@@ -148,7 +151,9 @@ describe("tracking with options.prior", function()
       end
       prior = pose
     end
-    assert.is_true(first_right ~= nil and first_right <= 5,
+    -- (six frames of evidence against e⁻³⁰: while σ is an estimate of few degrees of freedom
+    -- the evidence of each frame is tempered, its Student-t form)
+    assert.is_true(first_right ~= nil and first_right <= 6,
       "recovered at " .. tostring(first_right))
   end)
 
@@ -305,6 +310,59 @@ describe("tracking with options.prior", function()
       state.hypotheses[1] = 0 / 0
       local pick, p = track.step(state, candidate(r, t, 1), candidate(m, t, 2), 40, 10, state)
       assert.is_true(pick == 1 and p == p and track.is_state(state))
+    end)
+
+    it("estimates the noise from the chosen candidate, the single frame's default first", function()
+      local uncertainty = require("tagpose.uncertainty")
+      -- no estimate yet: the single-frame default, to the bit
+      local s2, dof = track.noise(0, 0, 3)
+      assert.equal(uncertainty.noise(3), s2)
+      assert.equal(track.NOISE_DOF + 2, dof)
+      assert.equal(track.NOISE_SIGMA, uncertainty.DEFAULT_SIGMA)
+      assert.equal(track.NOISE_DOF, uncertainty.DEFAULT_DOF)
+      -- then the estimate's weight decays by NOISE_MEMORY a frame, two degrees of freedom a frame
+      local keep = 1 - track.NOISE_MEMORY
+      local s2b, dofb = track.noise(s2, dof, 0.4)
+      assert.near((keep * dof * s2 + 0.4) / (keep * dof + 2), s2b, 1e-15)
+      assert.near(keep * dof + 2, dofb, 1e-15)
+      assert.near(s2b * dofb / (dofb - 2), track.noise_mean(s2b, dofb), 1e-15)
+      -- on a far tag near face-on, where the better fit is often the wrong branch, the
+      -- estimate is not biased low (the better fit's residuals are: the smaller of two)
+      local rng = geometry.rng(21)
+      local opts = { width = 30, tilt0 = rad(8), amplitude = rad(6), period = 90, azimuth = 0.4,
+        roll = 0.1, u = 300, v = 240 }
+      local prior, sum, low, n = nil, 0, 0, 0
+      for k = 0, 299 do
+        local r, t = wobble(k, opts)
+        local pose = assert(tagpose.solve(noisy(rng, geometry.project(camera, r, t, SIZE), 1),
+          camera, SIZE, { prior = prior, time = k / 30 }))
+        if k >= 100 then
+          local alt = pose.alternative
+          sum, n = sum + pose.track.sigma2, n + 1
+          low = low + 0.5 * math.min(pose.error, alt and alt.error or pose.error) ^ 2 * 4
+        end
+        prior = pose
+      end
+      assert.is_true(sum / n > 0.9 and sum / n < 1.1, ("σ² estimated %.3f px²"):format(sum / n))
+      assert.is_true(low / n < 0.9, ("the better fit's residuals say %.3f px²"):format(low / n))
+    end)
+
+    it("tempers a frame's evidence while σ² is an estimate of few degrees of freedom", function()
+      local x = track.EVIDENCE_TO
+      -- σ² known (no degrees of freedom given): κ (sse2 - sse1) / 2σ²
+      assert.near(track.EVIDENCE_MAX * (9 - 1) / (2 * 0.25), track.evidence(1, 9, 0.25, x),
+        1e-12)
+      -- tends to it as the degrees of freedom grow, tempered below it, antisymmetric
+      assert.near(track.evidence(1, 9, 0.25, x), track.evidence(1, 9, 0.25, x, 1e9), 1e-6)
+      local last = 0
+      for _, dof in ipairs({ 2, 10, 20, 100, 1000 }) do
+        local e = track.evidence(1, 9, 0.25, x, dof)
+        assert.is_true(e > last and e < track.evidence(1, 9, 0.25, x))
+        assert.near(-e, track.evidence(9, 1, 0.25, x, dof), 1e-12)
+        last = e
+      end
+      -- none near face-on
+      assert.equal(0, track.evidence(1, 9, 0.25, track.EVIDENCE_FROM, 10))
     end)
 
     it("calibrates the confidence as a monotone map onto [0.5, 1]", function()

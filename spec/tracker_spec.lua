@@ -1,6 +1,7 @@
 local tagpose = require("tagpose")
 local rotation = require("tagpose.core.rotation")
 local geometry = require("support.geometry")
+local gauss = require("support.gauss")
 
 local rad, deg, pi = math.rad, math.deg, math.pi
 
@@ -213,6 +214,93 @@ describe("tagpose.tracker", function()
     end)
   end)
 
+  describe("tracking", function()
+    -- a tag of `width` px whose tilt swings through face-on along one line, ±20°, `period`
+    -- frames a swing, with σ px of noise: per frame the pose and a detection
+    local function swinging(seed, frames, width, period, sigma)
+      local rng = geometry.rng(seed)
+      for _ = 1, 10 do rng.uniform() end
+      local azimuth, phase = rng.uniform(0, 2 * pi), rng.uniform(0, 2 * pi)
+      local out = {}
+      for k = 0, frames - 1 do
+        local r, t = pose_at(300, 250, width, rad(20) * math.sin(2 * pi * k / period + phase),
+          azimuth)
+        out[k + 1] = { r = r, t = t, det = detection(0, r, t, rng, sigma), time = k / 30 }
+      end
+      return out
+    end
+
+    it("carries a far tag's branch through face-on, again and again", function()
+      -- 30 px, where the tilt hardly leaves the noise: the branch survives a crossing only by
+      -- the rate the filter carries into it (before its likelihood of the squared tilt, these
+      -- six sequences had 163 rows wrong tracked, 51 smoothed)
+      local alone, tracked, smoothed = 0, 0, 0
+      for seed = 1, 6 do
+        local tr = tagpose.tracker.new(camera, SIZE, { smooth = true })
+        local frames, poses = swinging(seed, 360, 30, 120, 0.5), {}
+        for k, f in ipairs(frames) do
+          poses[k] = tr:update({ f.det }, f.time)[1].pose
+          local single = assert(tagpose.solve(f.det.corners, camera, SIZE))
+          if angle_to(f.r, single) > 30 then alone = alone + 1 end
+          if angle_to(f.r, poses[k]) > 30 then tracked = tracked + 1 end
+        end
+        local choice = tr:smooth()
+        for k, f in ipairs(frames) do
+          local p = choice[k] == 2 and poses[k].alternative or poses[k]
+          if angle_to(f.r, p) > 30 then smoothed = smoothed + 1 end
+        end
+      end
+      assert.is_true(alone >= 300, "the sequences are ambiguous enough to test: " .. alone)
+      assert.is_true(tracked * 4 <= alone and smoothed <= tracked,
+        ("of 2160 rows wrong: %d alone, %d tracked, %d smoothed"):format(alone, tracked,
+          smoothed))
+    end)
+
+    it("starts a new track from the noise its other tracks measured", function()
+      -- a tag seen for two seconds with 2 px of noise, then another: its first pose's
+      -- uncertainty is that of a single frame at σ = 2 px, not at the 0.5 px default
+      local rng = geometry.rng(31)
+      local tr = tagpose.tracker.new(camera, SIZE)
+      local r, t = pose_at(200, 240, 60, 0.6, 0.3)
+      for k = 0, 59 do tr:update({ detection(1, r, t, rng, 2) }, k / 30) end
+      local r2, t2 = pose_at(450, 240, 60, 0.5, 1.4)
+      local d = detection(2, r2, t2, rng, 2)
+      local seen = tr:update({ d }, 2)
+      assert.is_true(seen[1].new)
+      local first = seen[1].pose.covariance[3][3]
+      local known = assert(tagpose.solve(d.corners, camera, SIZE, { sigma = 2 })).covariance[3][3]
+      local default = assert(tagpose.solve(d.corners, camera, SIZE)).covariance[3][3]
+      assert.is_true(first / known > 0.8 and first / known < 1.5 and default / known < 0.6,
+        ("var(z): first %.3g, single frame σ 2 px %.3g, default %.3g"):format(first, known,
+          default))
+    end)
+
+    it("covers the truth with its covariance, σ given or estimated", function()
+      -- the covariance of the candidate on the true branch, its 6-dof 95 % ellipsoid (as
+      -- docs/uncertainty.md scores it); with σ estimated its degrees of freedom widen it
+      local function coverage(sigma, given)
+        local inside, rows = 0, 0
+        for seed = 1, 4 do
+          local tr = tagpose.tracker.new(camera, SIZE, { sigma = given and sigma or nil })
+          for _, f in ipairs(swinging(40 + seed, 150, 40, 150, sigma)) do
+            local pose = tr:update({ f.det }, f.time)[1].pose
+            local best, alt = pose, pose.alternative
+            if alt and angle_to(f.r, alt) < angle_to(f.r, pose) then best = alt end
+            local e = gauss.error_of(best, f.r, f.t)
+            if gauss.mahalanobis(best.covariance, e) < 12.59 then inside = inside + 1 end
+            rows = rows + 1
+          end
+        end
+        return inside / rows
+      end
+      for _, case in ipairs({ { 0.5, true }, { 0.5, false }, { 1.5, false } }) do
+        local c = coverage(case[1], case[2])
+        assert.is_true(c > 0.9 and c < 0.99, ("σ %g px %s: %.1f %%"):format(case[1],
+          case[2] and "given" or "estimated", 100 * c))
+      end
+    end)
+  end)
+
   describe("smooth()", function()
     -- a small tag coming closer and tilting more: its first frames say little about the
     -- branch, the later ones much
@@ -261,6 +349,82 @@ describe("tagpose.tracker", function()
       local choice, confidence = tr:smooth()
       assert.same({ 0, 1, 1 }, choice)
       assert.equal(0, confidence[1])
+    end)
+  end)
+
+  describe("the commands of docs/tracking.md and docs/uncertainty.md", function()
+    local run = require("support.run")
+    local dir
+
+    setup(function()
+      dir = os.tmpname()
+      os.remove(dir)
+      local out, status = run.script("bench/make_sequences.lua", dir .. "/s", "2", "3101",
+        "--kinds", "far_hover,far_wobble", "--frames", "40", "--camera", "random")
+      assert(status == 0, out)
+    end)
+
+    teardown(function()
+      run.run("rm -rf " .. run.quote(dir))
+    end)
+
+    it("pools the tracker's figures by kind, per set, with a constant set", function()
+      local out, status = run.script("bench/track_pool.lua", dir, "--kinds")
+      assert.equal(0, status, out)
+      assert.matches("| far_wobble | 40 |", out, 1, true)
+      assert.matches("| **all** | 80 |", out, 1, true)
+      assert.matches("| flipped (> 30° off) |", out, 1, true)
+      assert.matches("| true-branch candidate | 80 |", out, 1, true)
+      out, status = run.script("bench/track_pool.lua", dir, "--quick", "--by-set", "--sigma", "0.5",
+        "--set", "PROCESS=0.03")
+      assert.equal(0, status, out)
+      assert.matches("set " .. dir .. "/s rows 80 tracked", out, 1, true)
+      assert.is_nil(out:find("coverage of", 1, true))
+      out, status = run.script("bench/track_pool.lua", dir, "--set", "NOPE=1")
+      assert.equal(2, status, out)
+    end)
+
+    it("fits the confidence map and scores the tracker's confidence and covariance", function()
+      local out, status = run.script("bench/fit_confidence.lua", dir)
+      assert.equal(0, status, out)
+      assert.matches("M.CONFIDENCE = { 0, 0.00, 6, ", out, 1, true)
+      assert.matches("| posterior log-odds | rows | wrong |", out, 1, true)
+      for _, mode in ipairs({ "--track", "--smooth" }) do
+        out, status = run.script("examples/accuracy.lua", dir .. "/s", mode)
+        assert.equal(0, status, out)
+        assert.matches("confidence: ECE", out, 1, true)
+      end
+      for _, extra in ipairs({ "--sigma", "--default-sigma", "--prior" }) do
+        -- (--track with the set's σ given, with σ estimated; and a chain of options.prior)
+        if extra == "--prior" then
+          out, status = run.script("examples/uncertainty.lua", dir .. "/s", "--prior")
+        elseif extra == "--sigma" then
+          out, status = run.script("examples/uncertainty.lua", dir .. "/s", "--track")
+        else
+          out, status = run.script("examples/uncertainty.lua", dir .. "/s", "--track", extra)
+        end
+        assert.equal(0, status, out)
+        assert.matches("rows    80  coverage", out, 1, true)
+        assert.matches("(returned ", out, 1, true)
+      end
+    end)
+
+    it("adds noise to a real log and tables its rows by track age", function()
+      local out, status = run.script("bench/real_noise.lua", "--sigma", "2", "--seeds", "1",
+        "--from", "16", "--quick", "--by-age", "bench/realdata/builderbot-exp-13")
+      assert.equal(0, status, out)
+      assert.matches("seeds 16..16", out, 1, true)
+      assert.matches("| 2 | **all** | 873 |", out, 1, true)
+      assert.matches("| track age (frames) | rows |", out, 1, true)
+    end)
+
+    it("runs the rows whose instructions bench/track_instructions.sh counts", function()
+      for _, mode in ipairs({ "plain", "tracker" }) do
+        local out, status = run.script("bench/track_instructions.lua", mode, "5")
+        assert.equal(0, status, out)
+      end
+      local out, status = run.run("bash -n bench/track_instructions.sh 2>&1")
+      assert.equal(0, status, out)
     end)
   end)
 end)

@@ -14,7 +14,7 @@ local BLOCKS = "lua5.4 bench/make_blocks.lua /tmp/blocks5 600 5 && luajit "
 local LAYOUT = "lua5.4 bench/make_layout.lua /tmp/layout3 3 --calib 1 --test 5 --camera wide "
   .. "--sigma 1 && luajit examples/uncertainty.lua /tmp/layout3 --default-sigma"
 local TAGS = "lua5.4 bench/make_tags.lua /tmp/n05 noise_0.5 1 && luajit "
-  .. "examples/uncertainty.lua /tmp/n05 --default-sigma --ellipsoid"
+  .. "examples/uncertainty.lua /tmp/n05 --default-sigma"
 
 -- does a page show the command (an indented line of its own)?
 local function shows(path, command)

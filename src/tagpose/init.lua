@@ -168,10 +168,10 @@ local function refined_result(w, camera, half, prior, into, sigma, time)
   local pick, p = track.step(prior, a, b, size, time, state)
   if pick == 2 then a, b, ea, eb = b, a, eb, ea end
   -- (the filter keeps its own running estimate of σ² even when options.sigma is given: its
-  -- confidence map was fitted so, and given σ its confidence was measured less calibrated,
-  -- ECE 0.055 against 0.027 on the dev sequences; σ, or that estimate, sets the covariance)
+  -- confidence map was fitted so; σ, or the mean of σ² that estimate implies, sets the
+  -- covariance, as in tagpose.tracker)
   local r = result.new(a, ea, b, eb, w.iterations, w.linearisations, b and b.linearisations,
-    camera, half, sigma2 or state.sigma2, size, time, into)
+    camera, half, sigma2 or track.noise_mean(state.sigma2, state.dof), size, time, into)
   if b then result.set_confidence(r, track.confidence(p)) end
   r.track = state
   return r

@@ -2,9 +2,11 @@
 --
 -- 1. **predict**: each hypothesis's constant-rate Kalman filter on the tilt vector moves on by
 --    the time since the last frame;
--- 2. **branch**: each hypothesis has a child per candidate of the frame (it takes that
---    candidate's tilt as its measurement, its weight gains the motion likelihood and the
---    frame's evidence), and a new path may start at either candidate (`BIRTH`);
+-- 2. **branch**: each hypothesis has a child per candidate of the frame: the child takes that
+--    candidate's tilt as its measurement; its weight gains the frame's likelihood under the
+--    hypothesis (the candidates' tilts squared against the prediction's), the share of it on
+--    that candidate's side (by the candidates' distances from the prediction) and the frame's
+--    evidence for the candidate. A new path may start at either candidate (`BIRTH`);
 -- 3. **merge**: the children, best first, are merged where they coincide and the best
 --    `HYPOTHESES` kept, `RESERVE` places going to the best of the candidate the others did not
 --    choose;
@@ -20,7 +22,7 @@
 -- candidate it chose. Only this module reads or writes it.
 -- @module tagpose.track.filter
 
-local sqrt, exp, log = math.sqrt, math.exp, math.log
+local sqrt, exp, log, min, max = math.sqrt, math.exp, math.log, math.min, math.max
 
 local M = {}
 
@@ -62,42 +64,67 @@ local function start(T, out, time, s2, ax, ay, bx, by, r2, has2, ev)
   return 2, 1 - p1
 end
 
+-- The log of the share of the children of one hypothesis that choose the first candidate, and
+-- of those that choose the second, when their candidates lie at d1 and d2 (their exponents)
+-- from its prediction: -log(1 + e^(d1 - d2)) and -log(1 + e^(d2 - d1)). (Without a branch,
+-- the difference held within ±700 by min and max: on LuaJIT a side exit here, in branch's
+-- loop, is a trace that cannot be compiled, and a hypothesis far from one candidate takes it
+-- often.)
+local function shares(d1, d2)
+  local d = min(max(d1 - d2, -700), 700)
+  local soft = log(1 + exp(d))
+  return -soft, d - soft
+end
+
 -- Steps 1 and 2: the children of every hypothesis of `prev` and the new paths, into the
 -- scratch arrays; returns their count. (a: the first candidate's measurement, b the second's,
--- r2 their variance, half the frame's evidence halved.)
-local function branch(T, prev, dt, ax, ay, bx, by, has2, r2, half)
+-- r2 their variance, half the frame's evidence halved; z1, z2 the candidates' tilt vectors
+-- squared as complex numbers, rho2 the variance of each of their parts.)
+local function branch(T, prev, dt, ax, ay, bx, by, has2, r2, half, z1r, z1i, z2r, z2i, rho2)
   -- (the scratch arrays as locals: an upvalue costs one more instruction at every use)
   -- luacheck: push ignore 431
   local cx, cy, cvx, cvy, cpp, cpv, cvv, clw, cpick, cfrom = cx, cy, cvx, cvy, cpp, cpv, cvv,
     clw, cpick, cfrom
   -- luacheck: pop
   local h, k, q = prev.hypotheses, 0, T.PROCESS
-  local dt2, dt3 = dt * dt, dt * dt * dt
+  local dt2 = dt * dt
+  local q1, q2, q3 = q * dt, q * dt2 / 2, q * dt2 * dt / 3
   for o = 0, (prev.count - 1) * 9, 9 do
-    local lw = h[o + 8]
     local vx, vy = h[o + 3], h[o + 4]
     local x, y = h[o + 1] + vx * dt, h[o + 2] + vy * dt
     local pp0, pv0, vv0 = h[o + 5], h[o + 6], h[o + 7]
-    local pp = pp0 + 2 * dt * pv0 + dt2 * vv0 + q * dt3 / 3
-    local pv = pv0 + dt * vv0 + q * dt2 / 2
-    local vv = vv0 + q * dt
+    local pp = pp0 + 2 * dt * pv0 + dt2 * vv0 + q3
+    local pv = pv0 + dt * vv0 + q2
+    local vv = vv0 + q1
     local from = h[o + 9]
-    local s = pp + r2
-    local norm = log(TWO_PI * s)
+    -- the frame's likelihood under the hypothesis: its tilt squared against the candidates',
+    -- with the prediction's spread carried through the square
+    local xx, yy, xy = x * x, y * y, 2 * x * y
+    local S = 4 * (xx + yy + pp) * pp + rho2
+    local qx = xx - yy
+    local lw = h[o + 8] - log(TWO_PI * S)
+    local dr, di = z1r - qx, z1i - xy
+    local l1 = (dr * dr + di * di) / (2 * S)
     -- the Kalman update of either child: the same gains and covariance
+    local s = pp + r2
     local g1, g2 = pp / s, pv / s
     local upp, upv, uvv = pp - g1 * pp, pv - g1 * pv, vv - g2 * pv
     local dx, dy = ax - x, ay - y
     k = k + 1
     cx[k], cy[k], cvx[k], cvy[k] = x + g1 * dx, y + g1 * dy, vx + g2 * dx, vy + g2 * dy
     cpp[k], cpv[k], cvv[k] = upp, upv, uvv
-    clw[k], cpick[k], cfrom[k] = lw + half - (dx * dx + dy * dy) / (2 * s) - norm, 1, from
+    cpick[k], cfrom[k] = 1, from
     if has2 then
-      dx, dy = bx - x, by - y
+      local ex, ey = bx - x, by - y
+      local sa, sb = shares((dx * dx + dy * dy) / (2 * s), (ex * ex + ey * ey) / (2 * s))
+      clw[k] = lw + half - l1 + sa
+      dr, di = z2r - qx, z2i - xy
       k = k + 1
-      cx[k], cy[k], cvx[k], cvy[k] = x + g1 * dx, y + g1 * dy, vx + g2 * dx, vy + g2 * dy
+      cx[k], cy[k], cvx[k], cvy[k] = x + g1 * ex, y + g1 * ey, vx + g2 * ex, vy + g2 * ey
       cpp[k], cpv[k], cvv[k] = upp, upv, uvv
-      clw[k], cpick[k], cfrom[k] = lw - half - (dx * dx + dy * dy) / (2 * s) - norm, 2, from
+      clw[k], cpick[k], cfrom[k] = lw - half - (dr * dr + di * di) / (2 * S) + sb, 2, from
+    else
+      clw[k] = lw + half - l1
     end
   end
   -- a new path at either candidate, with the motion history forgotten
@@ -353,27 +380,38 @@ end
 function M.step(T, prev, a, b, size, time, out, llr)
   local has2 = b ~= nil
   local sse1 = a.sse
-  local dt, now, s2 = T.step_and_noise(prev, time, sse1, has2 and b.sse or sse1)
-  -- the candidates' tilt vectors, shrunk, and their variance
+  -- (everything read from prev before out, which may be prev, is written)
+  local dt, now, s2, dof, own = T.step_and_noise(prev, time)
+  -- the candidates' tilt vectors, squared as complex numbers, and the variance of each part of
+  -- their noise; then shrunk, and their variance
   local ax, ay = T.tilt(a.qw, a.qx, a.qy, a.qz, a.tx, a.ty, a.tz)
   local bx, by = ax, ay
   if has2 then bx, by = T.tilt(b.qw, b.qx, b.qy, b.qz, b.tx, b.ty, b.tz) end
+  local z1r, z1i, z2r, z2i = ax * ax - ay * ay, 2 * ax * ay, bx * bx - by * by, 2 * bx * by
+  local rho = T.SQUARE_NOISE * sqrt(s2) / size
   local g, r2, xm = T.measurement(sqrt(ax * ax + ay * ay), size, s2)
   ax, ay, bx, by = g * ax, g * ay, g * bx, g * by
   local ev = 0
   if has2 then
-    ev = llr or T.evidence(sse1, b.sse, s2, xm)
+    ev = llr or T.evidence(sse1, b.sse, s2, xm, dof)
     if ev ~= ev then ev = 0 elseif ev > 700 then ev = 700 elseif ev < -700 then ev = -700 end
   end
-  if not prev then return start(T, out, now, s2, ax, ay, bx, by, r2, has2, ev) end
-  local k = branch(T, prev, dt, ax, ay, bx, by, has2, r2, 0.5 * ev)
-  local back_first, back_second = weigh(k, prev.first)
-  local m = merge(T, r2, sort(k))
-  local pick, p = emit(out, m, now, s2, back_first, back_second)
-  if not (p == p) then
-    -- a state the caller damaged (not a number in it): start again from this frame
-    return start(T, out, now, s2, ax, ay, bx, by, r2, has2, ev)
+  local pick, p
+  if not prev or prev.count == 0 then
+    pick, p = start(T, out, now, s2, ax, ay, bx, by, r2, has2, ev)
+  else
+    local k = branch(T, prev, dt, ax, ay, bx, by, has2, r2, 0.5 * ev, z1r, z1i, z2r, z2i,
+      rho * rho)
+    local back_first, back_second = weigh(k, prev.first)
+    local m = merge(T, r2, sort(k))
+    pick, p = emit(out, m, now, s2, back_first, back_second)
+    if not (p == p) then
+      -- a state the caller damaged (not a number in it): start again from this frame
+      pick, p = start(T, out, now, s2, ax, ay, bx, by, r2, has2, ev)
+    end
   end
+  -- the noise estimate, with the residuals of the candidate chosen
+  out.sigma2, out.dof = T.noise(s2, own, pick == 1 and sse1 or b.sse)
   return pick, p
 end
 

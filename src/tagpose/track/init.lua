@@ -17,39 +17,58 @@
 -- constant-rate Kalman filter on `τ` (white angular acceleration of density `PROCESS`,
 -- rad²/s³, so missed frames and uneven spacing are handled by the time between frames), with
 -- a log-weight. Every frame each hypothesis branches on which candidate is the true pose:
--- its weight gains the motion likelihood of that candidate and the frame's evidence for it
--- (below). A new path may also start at either candidate with a small weight (`BIRTH`), so
--- a hypothesis set that lost the truth recovers. Children that coincide are merged, the best
--- `HYPOTHESES` kept. The probability that a candidate is the true pose is the weight of the
--- hypotheses that chose it. (`tagpose.track.filter` does one frame: predict, branch, merge,
--- emit.)
+-- its weight gains the frame's likelihood under the hypothesis, its share of it that falls on
+-- that candidate's side, and the frame's evidence for the candidate (below). A new path may
+-- also start at either candidate with a small weight (`BIRTH`), so a hypothesis set that lost
+-- the truth recovers. Children that coincide are merged, the best `HYPOTHESES` kept. The
+-- probability that a candidate is the true pose is the weight of the hypotheses that chose it.
+-- (`tagpose.track.filter` does one frame: predict, branch, merge, emit.)
 --
--- **The measurement.** A candidate's `τ` near face-on is biased away from zero (its size is
--- set by the noise: about `√(σ/w)`, σ the corner noise, w the tag's side in pixels) and its
--- direction is poorly known; so the filter takes `g·τ` with variance `r²` (per axis), where
--- with `x = |τ| / √(σ/w)`: `g = SHRINK` for `x ≤ SHRINK_FROM`, rising linearly to 1 at
--- `SHRINK_TO`, and `r = min(SPREAD, SPREAD_TAIL / x)·√(σ/w)`. These were measured on
--- synthetic sequences (bench/make_sequences.lua).
+-- **The likelihood.** What the corners fix of the tilt, to first order, is its square: the
+-- foreshortening's direction and amount, not its sign (the two candidates' `τ` are nearly
+-- opposite). As a complex number, `q = τ²` is measured with noise that is unbiased, isotropic
+-- and of one size whatever the tilt, about `2.6·σ/w` per part (σ the corner noise, w the tag's
+-- side, in pixels; measured on synthetic sequences), while `τ` itself near face-on is biased
+-- away from zero (about `√(σ/w)` in size) and poor in direction. So a hypothesis predicting
+-- `τ̂` with per-axis variance `P` gives the frame the likelihood of a candidate's `q` under a
+-- Gaussian about `τ̂²` of per-part variance `4(|τ̂|² + P)·P + ρ²`, `ρ = SQUARE_NOISE·σ/w` (the
+-- measured 2.6, with an allowance); its children share it in proportion to how near each
+-- candidate lies to the prediction. That is what carries a far tag through face-on: a
+-- hypothesis that keeps its rate through a crossing is not penalised for a `τ` that the noise
+-- inflated.
+--
+-- **The update.** Each child's Kalman update takes its candidate's `g·τ` with variance `r²`
+-- (per axis), where with `x = |τ| / √(σ/w)`: `g = SHRINK` for `x ≤ SHRINK_FROM`, rising
+-- linearly to 1 at `SHRINK_TO`, and `r = min(SPREAD, SPREAD_TAIL / x)·√(σ/w)` (measured: the
+-- true branch's `τ` against the candidate's, by x).
 --
 -- **The evidence** of one frame is a log-likelihood ratio between the two candidates,
--- `log P(corners | first) − log P(corners | second)`: `M.evidence`,
--- `κ(x)·(SSE₂ − SSE₁)/(2σ²)`, where the weight `κ` rises from 0 at `x = EVIDENCE_FROM` to
--- `EVIDENCE_MAX` at `EVIDENCE_TO` (near face-on the error difference says nothing about the
--- branch), unless the caller supplies its own. σ² is estimated online from the best
--- candidate's SSE (`SSE/2` for its two residual degrees of freedom, weight `NOISE_MEMORY` per
--- frame).
+-- `log P(corners | first) − log P(corners | second)`: `M.evidence`, the Student-t form
+-- `κ(x)·(ν + 2)/2·log((ν·s² + SSE₂)/(ν·s² + SSE₁))` of the known-noise
+-- `κ(x)·(SSE₂ − SSE₁)/(2σ²)` for σ² known only as an estimate `s²` of ν degrees of freedom,
+-- where the weight `κ` rises from 0 at `x = EVIDENCE_FROM` to `EVIDENCE_MAX` at `EVIDENCE_TO`
+-- (near face-on the error difference says nothing about the branch), unless the caller
+-- supplies its own.
+--
+-- **The noise** is estimated on the way (`M.noise`): the residuals of the candidate chosen
+-- (`SSE/2` for its two degrees of freedom), pooled with the estimate before it whose weight
+-- decays by `NOISE_MEMORY` a frame; a track starts from `NOISE_DOF` degrees of freedom at
+-- `NOISE_SIGMA` (the single-frame default of `tagpose.uncertainty`), or from a state that
+-- carries an estimate (`tagpose.tracker` starts its tracks from the noise its other tracks
+-- measured). A frame's evidence and measurement take the estimate from before it.
 --
 -- **The confidence** returned is the filter's posterior probability of the chosen candidate,
--- calibrated by an increasing map of its log-odds (`CONFIDENCE`), fitted on the synthetic
--- sequences with the evidence above (a different evidence function needs its own): the
--- posterior is overconfident (its log-odds are about twice what the frames bear out), and
--- beyond 99.9 % a wrong branch is rare but not rarer.
+-- calibrated by an increasing map of its log-odds (`CONFIDENCE`), fitted on synthetic
+-- sequences with the evidence above (`bench/fit_confidence.lua`; a different evidence function
+-- needs its own): up to log-odds 6 the posterior is a little overconfident (by a tenth), and
+-- beyond 99.99 % a wrong branch is rare but not rarer.
 --
 -- **The state** of a track is a record (`new_state`; `pose.track` of a tracked solve): `time`
--- (s) of its frame, `sigma2` (px², the running noise estimate, 0 while unknown), `first` (the
--- posterior probability of that frame's first candidate), `back_first` and `back_second` (for
--- smoothing, see `step`), `count` (hypotheses) and `hypotheses`, the filter's own flat array
--- (`tagpose.track.filter` reads and writes it; nothing else does).
+-- (s) of its frame, `sigma2` and `dof` (px² and degrees of freedom: the running noise
+-- estimate, 0 and 0 while there is none), `first` (the posterior probability of that frame's
+-- first candidate), `back_first` and `back_second` (for smoothing, see `step`), `count`
+-- (hypotheses) and `hypotheses`, the filter's own flat array (`tagpose.track.filter` reads and
+-- writes it; nothing else does).
 --
 -- A candidate, as the filter takes it, is a record with the rotation's unit quaternion
 -- `qw, qx, qy, qz` (tag → camera), the tag centre `tx, ty, tz` (camera frame) and `sse`, the
@@ -59,7 +78,7 @@
 local compat = require("tagpose.core.compat")
 local rotation = require("tagpose.core.rotation")
 
-local sqrt, exp, log, min = math.sqrt, math.exp, math.log, math.min
+local sqrt, exp, log = math.sqrt, math.exp, math.log
 local is_finite = compat.is_finite
 
 local M = {}
@@ -67,9 +86,9 @@ local M = {}
 --- Nominal time between frames (s), when no time is given.
 M.FRAME = 1 / 30
 --- Most hypotheses kept.
-M.HYPOTHESES = 16
+M.HYPOTHESES = 12
 --- Density of the white angular acceleration of the tilt vector, rad²/s³.
-M.PROCESS = 0.03
+M.PROCESS = 0.1
 --- Variance of a new path's tilt rate, (rad/s)².
 M.RATE = 0.25
 --- Weight of a new path starting at a candidate, relative to the hypotheses' total.
@@ -87,18 +106,26 @@ M.SHRINK_FROM = 2
 M.SHRINK_TO = 3
 M.SPREAD = 0.7
 M.SPREAD_TAIL = 1.3
+--- Standard deviation of each part of a candidate's tilt vector squared (as a complex number),
+-- over σ/w (σ the corner noise, w the tag's side, both in pixels; see the module's header):
+-- measured 2.6, taken a little wider for what the constant-rate model does not foresee.
+M.SQUARE_NOISE = 3.0
 --- Weight of the reprojection evidence (see above).
 M.EVIDENCE_FROM = 1
 M.EVIDENCE_TO = 3
 M.EVIDENCE_MAX = 0.9
---- Weight of a new frame in the running noise estimate.
+--- The running estimate of the corner noise: the weight of the estimate so far lost at each
+-- frame, its degrees of freedom and σ (px) before any frame (`tagpose.uncertainty`'s single-frame
+-- default, `DEFAULT_DOF` and `DEFAULT_SIGMA`), its floor (px²).
 M.NOISE_MEMORY = 0.1
---- Floor of the noise variance estimate (px²).
+M.NOISE_DOF = 8
+M.NOISE_SIGMA = 0.5
 M.NOISE_FLOOR = 1e-4
 -- The calibration of the confidence (`M.CONFIDENCE`): pairs (posterior log-odds, confidence
 -- log-odds) of a piecewise-linear increasing map, fitted to the reliability of the posterior
--- on synthetic sequences (see the module's header).
-M.CONFIDENCE = { 0, 0, 6, 2.75, 11, 2.9, 14, 7.5, 40, 9 }
+-- on synthetic sequences (see the module's header): `bench/fit_confidence.lua` on
+-- `bench/make_sequences.lua` seeds 2101-2116 (the dev set's seven kinds).
+M.CONFIDENCE = { 0, 0, 6, 5.4, 11, 8.42, 14, 9, 40, 9 }
 --- Slope of the confidence's calibration beyond its last pair.
 M.CONFIDENCE_TAIL = 0.05
 --- Bounds on the time between frames (s).
@@ -115,8 +142,8 @@ M.STATE = STATE
 --- A new, empty state record (no hypotheses: the next `step` starts the track).
 -- @treturn table
 function M.new_state()
-  return setmetatable({ time = 0, sigma2 = 0, first = 1, back_first = 0.5, back_second = 0.5,
-    count = 0, hypotheses = {} }, STATE)
+  return setmetatable({ time = 0, sigma2 = 0, dof = 0, first = 1, back_first = 0.5,
+    back_second = 0.5, count = 0, hypotheses = {} }, STATE)
 end
 
 --- Tilt vector of a pose: the tag normal's components across the line of sight.
@@ -167,14 +194,18 @@ function M.measurement(m, size, s2)
   return g, r * r, x
 end
 
---- The default evidence of one frame for its first candidate against its second:
--- `κ(x)·(sse2 − sse1)/(2·s2)`.
+--- The default evidence of one frame for its first candidate against its second, with the
+-- corner noise known only as an estimate `s2` of `dof` degrees of freedom (σ² integrated out:
+-- the frame's residuals, two degrees of freedom each, against a scaled inverse-χ² belief):
+-- `κ(x)·(dof + 2)/2·log((dof·s2 + sse2)/(dof·s2 + sse1))`, which tends to
+-- `κ(x)·(sse2 − sse1)/(2·s2)` as dof grows (the form taken without dof: σ² known).
 -- @tparam number sse1 first candidate's sum of squared residuals (px²)
 -- @tparam number sse2 second candidate's
--- @tparam number s2 corner noise variance (px²)
+-- @tparam number s2 corner noise variance (px²), > 0
 -- @tparam number x the first candidate's tilt over `√(σ/w)` (see the module's header)
+-- @tparam[opt] number dof the degrees of freedom of s2, > 0 (nil: s2 is σ² itself)
 -- @treturn number log-likelihood ratio
-function M.evidence(sse1, sse2, s2, x)
+function M.evidence(sse1, sse2, s2, x, dof)
   local k
   if x <= M.EVIDENCE_FROM then
     return 0
@@ -183,7 +214,43 @@ function M.evidence(sse1, sse2, s2, x)
   else
     k = M.EVIDENCE_MAX * (x - M.EVIDENCE_FROM) / (M.EVIDENCE_TO - M.EVIDENCE_FROM)
   end
-  return k * (sse2 - sse1) / (2 * s2)
+  if not dof then return k * (sse2 - sse1) / (2 * s2) end
+  local scale = dof * s2
+  return k * 0.5 * (dof + 2) * log((scale + sse2) / (scale + sse1))
+end
+
+--- The running noise estimate after a frame: the chosen candidate's residuals (two degrees of
+-- freedom) pooled with the estimate before it (`s2` of `dof` degrees of freedom, their weight
+-- decayed by `NOISE_MEMORY`), or with `NOISE_DOF` degrees of freedom at `NOISE_SIGMA` when there
+-- is none (dof 0: then σ² is `tagpose.uncertainty`'s single-frame default).
+-- @tparam number s2 the estimate (px²)
+-- @tparam number dof its degrees of freedom (0: none)
+-- @tparam number sse the chosen candidate's sum of squared residuals (px²)
+-- @treturn number σ² (px²)
+-- @treturn number its degrees of freedom
+function M.noise(s2, dof, sse)
+  local sum, d
+  if dof > 0 and s2 > 0 then
+    local keep = 1 - M.NOISE_MEMORY
+    d = keep * dof
+    sum, d = d * s2 + sse, d + 2
+  else
+    local sigma = M.NOISE_SIGMA
+    sum, d = M.NOISE_DOF * sigma * sigma + sse, M.NOISE_DOF + 2
+  end
+  local v = sum / d
+  if not (v >= M.NOISE_FLOOR) then v = M.NOISE_FLOOR end
+  return v, d
+end
+
+--- The mean of σ² given a running estimate `s2` of `dof` degrees of freedom (a scaled
+-- inverse-χ² belief): `s2·dof/(dof − 2)`, the σ² whose covariance `σ² H⁻¹` is the pose's own
+-- when σ is not known (the estimate itself is the belief's scale, a little smaller).
+-- @tparam number s2 the estimate (px²)
+-- @tparam number dof its degrees of freedom (> 2)
+-- @treturn number σ² (px²)
+function M.noise_mean(s2, dof)
+  return s2 * dof / (dof - 2)
 end
 
 local function logistic(l)
@@ -205,17 +272,17 @@ function M.confidence(p)
   return logistic(k[#k] + M.CONFIDENCE_TAIL * (l - k[#k - 1]))
 end
 
---- The time step and the corner noise of a frame after a state.
+--- The time step of a frame after a state, and the corner noise known before it.
 -- @tparam ?table prev the previous state, or nil
 -- @tparam ?number time this frame's time (s), or nil: `FRAME` after the previous
--- @tparam number sse1 the first candidate's sum of squared residuals (px²)
--- @tparam number sse2 the second's (sse1 when there is one)
 -- @treturn number dt, clamped to [`MIN_STEP`, `MAX_STEP`]
 -- @treturn number the frame's time
--- @treturn number σ² for this frame, and to carry on (px²)
-function M.step_and_noise(prev, time, sse1, sse2)
-  local s2, t0 = 0, nil
-  if prev then s2, t0 = prev.sigma2, prev.time end
+-- @treturn number σ² (px²): the state's estimate, or `NOISE_SIGMA`² when it has none
+-- @treturn number its degrees of freedom: the state's, or `NOISE_DOF`
+-- @treturn number the state's own degrees of freedom (0 when it has no estimate)
+function M.step_and_noise(prev, time)
+  local s2, dof, t0 = 0, 0, nil
+  if prev then s2, dof, t0 = prev.sigma2, prev.dof, prev.time end
   local dt
   if time == nil then
     dt = M.FRAME
@@ -224,17 +291,16 @@ function M.step_and_noise(prev, time, sse1, sse2)
     dt = t0 and time - t0 or M.FRAME
   end
   if not (dt >= M.MIN_STEP) then dt = M.MIN_STEP elseif dt > M.MAX_STEP then dt = M.MAX_STEP end
-  local new = 0.5 * min(sse1, sse2)
-  local carried = s2 > 0 and (1 - M.NOISE_MEMORY) * s2 + M.NOISE_MEMORY * new or new
-  if not (carried >= M.NOISE_FLOOR) then carried = M.NOISE_FLOOR end
-  return dt, time, carried
+  if dof > 0 and s2 > 0 then return dt, time, s2, dof, dof end
+  local sigma = M.NOISE_SIGMA
+  return dt, time, sigma * sigma, M.NOISE_DOF, 0
 end
 
 local filter = require("tagpose.track.filter")
 
 --- One frame of the filter: which candidate is the pose, given the track so far.
 -- @tparam ?table prev the previous state, or nil (or a state without hypotheses) to start a
---   track
+--   track: from that state's noise estimate (`sigma2`, `dof`) when it has one
 -- @tparam table a the frame's first candidate (the better fit; see the module's header)
 -- @tparam ?table b its second candidate, or nil when there is one minimum
 -- @tparam number size the tag's side in pixels
@@ -248,7 +314,6 @@ local filter = require("tagpose.track.filter")
 --   so far (0.5 when there was no previous frame), `out.back_second` the same given that this
 --   frame's second candidate is true
 function M.step(prev, a, b, size, time, out, llr)
-  if prev and prev.count == 0 then prev = nil end
   return filter.step(M, prev, a, b, size, time, out, llr)
 end
 
@@ -262,9 +327,9 @@ function M.is_state(t)
     or type(h) ~= "table" or h[n * M.STRIDE + 1] ~= nil or (n > 0 and h[n * M.STRIDE] == nil) then
     return false
   end
-  local s2, p = t.sigma2, t.first
-  return is_finite(t.time) and is_finite(s2) and s2 >= 0 and type(p) == "number"
-    and p >= 0 and p <= 1
+  local s2, dof, p = t.sigma2, t.dof, t.first
+  return is_finite(t.time) and is_finite(s2) and s2 >= 0 and is_finite(dof) and dof >= 0
+    and type(p) == "number" and p >= 0 and p <= 1
 end
 
 --- A copy of a state (into `out`, or a new record).
@@ -273,8 +338,8 @@ end
 -- @treturn table the copy
 function M.copy(s, out)
   out = out or M.new_state()
-  out.time, out.sigma2, out.first, out.back_first, out.back_second, out.count = s.time, s.sigma2,
-    s.first, s.back_first, s.back_second, s.count
+  out.time, out.sigma2, out.dof, out.first, out.back_first, out.back_second, out.count = s.time,
+    s.sigma2, s.dof, s.first, s.back_first, s.back_second, s.count
   local h, o = s.hypotheses, out.hypotheses
   local n = s.count * M.STRIDE
   for i = 1, n do o[i] = h[i] end
@@ -306,8 +371,9 @@ function M.from_pose(out, q, t, q2, t2, opts)
   local lw1, lw2 = 0, 0
   if first then lw1, lw2 = log(first), log(1 - first) end
   local v = opts and opts.variance or 0.01
-  out.time, out.sigma2, out.first, out.back_first, out.back_second, out.count = 0,
-    opts and opts.sigma2 or 0, first or 0.5, 0.5, 0.5, 2
+  local s2 = opts and opts.sigma2 or 0
+  out.time, out.sigma2, out.dof, out.first, out.back_first, out.back_second, out.count = 0, s2,
+    s2 > 0 and M.NOISE_DOF or 0, first or 0.5, 0.5, 0.5, 2
   local h = out.hypotheses
   h[1], h[2], h[3], h[4], h[5], h[6], h[7], h[8], h[9] = ax, ay, 0, 0, v, 0, M.RATE, lw1, 1
   h[10], h[11], h[12], h[13], h[14], h[15], h[16], h[17], h[18] = bx, by, 0, 0, v, 0,

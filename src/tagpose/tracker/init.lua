@@ -257,11 +257,17 @@ local function solve(self, i, t, size, time)
   end
   local state = t and t.state or track.new_state()
   local started = state.count == 0
-  local pick, p = track.step(not started and state or nil, a, b, self.ss[i], time, state)
+  -- a new track starts from the noise the tracker measured on its tracks so far (none: the
+  -- single-frame default)
+  if started then state.sigma2, state.dof = self.noise or 0, self.noise_dof or 0 end
+  local pick, p = track.step(state, a, b, self.ss[i], time, state)
   if pick == 2 then a, b, ea, eb = b, a, eb, ea end
-  -- a track's first pose: the single frame's confidence and σ (`tagpose.solve`'s); after
-  -- that, the filter's posterior and its running σ² (or the tracker's σ)
-  local sigma2 = self.sigma2 or (not started and state.sigma2 or nil)
+  self.noise, self.noise_dof = track.noise(self.noise or 0, self.noise_dof or 0, a.sse)
+  -- σ² for the covariance: the tracker's σ, else what the track's running estimate with this
+  -- frame says of it (a track's first frame: the tracker's estimate pooled with the frame, the
+  -- single frame's default on the tracker's first); a track's first confidence is the single
+  -- frame's at that σ², after that the filter's posterior
+  local sigma2 = self.sigma2 or track.noise_mean(state.sigma2, state.dof)
   local r = result.new(a, ea, b, eb, w.iterations, w.linearisations, b and b.linearisations,
     camera, half, sigma2, self.ss[i], time)
   if b and not started then result.set_confidence(r, track.confidence(p)) end
