@@ -127,8 +127,10 @@ end
 -- (Written out: on LuaJIT a loop here starts a side trace that cannot be compiled.)
 local function side(px)
   local u1, v1, u2, v2, u3, v3, u4, v4 = px[1], px[2], px[3], px[4], px[5], px[6], px[7], px[8]
-  return 0.25 * (sqrt((u2 - u1) ^ 2 + (v2 - v1) ^ 2) + sqrt((u3 - u2) ^ 2 + (v3 - v2) ^ 2)
-    + sqrt((u4 - u3) ^ 2 + (v4 - v3) ^ 2) + sqrt((u1 - u4) ^ 2 + (v1 - v4) ^ 2))
+  local a, b, c, d = u2 - u1, v2 - v1, u3 - u2, v3 - v2
+  local e, f, g, h = u4 - u3, v4 - v3, u1 - u4, v1 - v4
+  return 0.25 * (sqrt(a * a + b * b) + sqrt(c * c + d * d) + sqrt(e * e + f * f)
+    + sqrt(g * g + h * h))
 end
 
 local spare_state = setmetatable({}, { __mode = "k" }) -- into -> a state to fill next

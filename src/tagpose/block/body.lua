@@ -35,6 +35,12 @@ local sqrt, abs, acos, deg, rad = math.sqrt, math.abs, math.acos, math.deg, math
 local is_finite, describe = compat.is_finite, args.describe
 local ROTATIONS = cube.ROTATIONS
 
+-- The squared distance of a place p from (x, y, z).
+local function distance2(p, x, y, z)
+  local dx, dy, dz = p.x - x, p.y - y, p.z - z
+  return dx * dx + dy * dy + dz * dz
+end
+
 local M = {}
 
 compat.interpret_module()
@@ -103,11 +109,10 @@ local function orbit(tags, block_size)
       if not p then
         places[k] = { r = ROTATIONS[k], x = x, y = y, z = z, key = cube.face_of(ROTATIONS[k]),
           id = id }
-      elseif (p.x - x) ^ 2 + (p.y - y) ^ 2 + (p.z - z) ^ 2 > tolerance ^ 2 then
+      elseif distance2(p, x, y, z) > tolerance * tolerance then
         return nil, ("options.layout: not symmetric: the cube's rotations put tags[%s] and "
           .. "tags[%s] in one place %g apart (leave out symmetric = true when the ids tell the "
-          .. "tags apart)"):format(tostring(p.id), tostring(id),
-          sqrt((p.x - x) ^ 2 + (p.y - y) ^ 2 + (p.z - z) ^ 2))
+          .. "tags apart)"):format(tostring(p.id), tostring(id), sqrt(distance2(p, x, y, z)))
       end
     end
   end

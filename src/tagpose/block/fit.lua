@@ -89,7 +89,7 @@ local function set_prior(fr, plane)
     if abs(h - level) <= gate then
       prior.level, prior.plane_weight = level, fr.floor_w
     else
-      penalty = (fr.floor_w * gate) ^ 2
+      penalty = ((fr.floor_w * gate) * (fr.floor_w * gate))
     end
   end
   return prior, penalty

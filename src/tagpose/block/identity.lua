@@ -52,7 +52,7 @@ function M.nearest_previous(previous, x, y, z, gate)
   local best, best_d = nil, gate * gate
   for i = 1, #previous do
     local p = previous[i]
-    local d = (p.x - x) ^ 2 + (p.y - y) ^ 2 + (p.z - z) ^ 2
+    local d = ((p.x - x) * (p.x - x)) + ((p.y - y) * (p.y - y)) + ((p.z - z) * (p.z - z))
     if d < best_d then best, best_d = p, d end
   end
   return best
@@ -72,7 +72,8 @@ function M.match(found, previous, gate)
     local h = found[i].h
     for j = 1, #previous do
       local q = previous[j]
-      local d = sqrt((h.x - q.x) ^ 2 + (h.y - q.y) ^ 2 + (h.z - q.z) ^ 2)
+      local dx, dy, dz = h.x - q.x, h.y - q.y, h.z - q.z
+      local d = sqrt(dx * dx + dy * dy + dz * dz)
       if d < gate then candidates[#candidates + 1] = { d, i, j } end
     end
   end

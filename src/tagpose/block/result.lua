@@ -102,7 +102,8 @@ end
 
 -- orders for table.sort (module-level: a closure made per call stops LuaJIT's compiler)
 local function nearer(a, b)
-  return a.h.x ^ 2 + a.h.y ^ 2 + a.h.z ^ 2 < b.h.x ^ 2 + b.h.y ^ 2 + b.h.z ^ 2
+  local p, q = a.h, b.h
+  return p.x * p.x + p.y * p.y + p.z * p.z < q.x * q.x + q.y * q.y + q.z * q.z
 end
 local function smaller_id(a, b) return a.id < b.id end
 

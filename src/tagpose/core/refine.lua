@@ -223,8 +223,9 @@ local function step(N, lambda, P, Q, C, half)
   local z = P[9]
   Q[7], Q[8], Q[9] = P[7] + d4, P[8] + d5, z + d6
   local f = C.fx > C.fy and C.fx or C.fy
-  local e = f * (sqrt(2 * half / z * (d1 * d1 + d2 * d2 + d3 * d3))
-    + sqrt(d4 * d4 + d5 * d5 + d6 * d6) / z) ^ 2
+  local m = sqrt(2 * half / z * (d1 * d1 + d2 * d2 + d3 * d3))
+    + sqrt(d4 * d4 + d5 * d5 + d6 * d6) / z
+  local e = f * (m * m)
   return lambda, disp, 4 * e * e
 end
 

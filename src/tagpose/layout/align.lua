@@ -26,7 +26,7 @@ local function top_eigenvector(a)
   for _ = 1, M.SWEEPS do
     local off = 0
     for p = 1, 3 do
-      for q = p + 1, 4 do off = off + a[(p - 1) * 4 + q] ^ 2 end
+      for q = p + 1, 4 do off = off + (a[(p - 1) * 4 + q] * a[(p - 1) * 4 + q]) end
     end
     if off < 1e-30 then break end
     for p = 1, 3 do

@@ -276,11 +276,11 @@ function M.tag_move(P, S, D)
   local y, most = D.y, 0
   for i = 1, P.ntags do
     local o = 6 * (i - 1)
-    local r = sqrt(y[o + 1] ^ 2 + y[o + 2] ^ 2 + y[o + 3] ^ 2)
-    local t = sqrt(y[o + 4] ^ 2 + y[o + 5] ^ 2 + y[o + 6] ^ 2)
+    local r = sqrt((y[o + 1] * y[o + 1]) + (y[o + 2] * y[o + 2]) + (y[o + 3] * y[o + 3]))
+    local t = sqrt((y[o + 4] * y[o + 4]) + (y[o + 5] * y[o + 5]) + (y[o + 6] * y[o + 6]))
     local p = S.tp
-    local v = t + r * (sqrt(p[3 * i - 2] ^ 2 + p[3 * i - 1] ^ 2 + p[3 * i] ^ 2)
-      + P.half[i] * 1.5)
+    local px, py, pz = p[3 * i - 2], p[3 * i - 1], p[3 * i]
+    local v = t + r * (sqrt(px * px + py * py + pz * pz) + P.half[i] * 1.5)
     if v > most then most = v end
   end
   return most

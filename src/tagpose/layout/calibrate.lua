@@ -242,7 +242,7 @@ local function adjust(P, S, T, c2, budget)
   local cost = bundle.cost(P, S, c2)
   local dof = max(8 * #P.of - 6 * P.nframes - 6 * (P.ntags - 1), 1)
   local lambda, used = 1e-3, 0
-  local floor = 8 * #P.of * M.ROUND_OFF ^ 2
+  local floor = 8 * #P.of * (M.ROUND_OFF * M.ROUND_OFF)
   local tolerance = max(M.COST_TOLERANCE * cost / dof, floor)
   while used < budget do
     bundle.linearise(P, S, c2)
@@ -399,7 +399,7 @@ function M.calibrate(frames, camera, tags, o, name)
   local sigma = robust_sigma(P)
   while stages < M.MAX_STAGES and iterations < budget do
     stages = stages + 1
-    local c2 = 8 * (K * sigma) ^ 2
+    local c2 = 8 * ((K * sigma) * (K * sigma))
     iterations = iterations + adjust(P, S, T, c2, budget - iterations)
     if stages == 1 then
       mended = reseat(P, S, T, c2, order, tags, frames_used, camera)
@@ -412,7 +412,7 @@ function M.calibrate(frames, camera, tags, o, name)
     sigma = next_sigma
     if settled and stages > 1 then break end
   end
-  local c2 = 8 * (K * sigma) ^ 2
+  local c2 = 8 * ((K * sigma) * (K * sigma))
   bundle.cost(P, S, c2)
   local poses, alignment = to_nominal(P, S, order, tags, o.gauge)
   -- the layout

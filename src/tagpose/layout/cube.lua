@@ -136,7 +136,7 @@ function M.of_nested(m, angle)
   -- the nearest, and how far: ‖m − G‖² = 4 (1 − cos θ) for a rotation m at angle θ from G
   local k = M.nearest(flat)
   local g, d2 = ROTATIONS[k], 0
-  for i = 1, 9 do d2 = d2 + (flat[i] - g[i]) ^ 2 end
+  for i = 1, 9 do d2 = d2 + ((flat[i] - g[i]) * (flat[i] - g[i])) end
   if not (d2 <= 4 * (1 - math.cos(angle or 1e-6)) + 1e-15) then return nil end
   return k
 end

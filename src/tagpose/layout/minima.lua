@@ -134,8 +134,8 @@ function M.find(camera, points, pixels, npts, starts, get_start, max_it, plane)
     local near = false
     for j = 1, fitted do
       local f = tried[j]
-      local d2 = (f.x - tx) ^ 2 + (f.y - ty) ^ 2 + (f.z - tz) ^ 2
-      if d2 < M.SAME_START ^ 2 * (tx * tx + ty * ty + tz * tz)
+      local d2 = ((f.x - tx) * (f.x - tx)) + ((f.y - ty) * (f.y - ty)) + ((f.z - tz) * (f.z - tz))
+      if d2 < (M.SAME_START * M.SAME_START) * (tx * tx + ty * ty + tz * tz)
         and rotation.angle(f.r, r_k) < M.SAME_START then
         near = true
         break

@@ -382,8 +382,8 @@ function M.order(P)
   local frames, tags = 0, 0
   for _, k in pairs(per_frame) do frames = frames + 108 * k * (k + 1) end
   for _, k in pairs(per_tag) do tags = tags + 108 * k * (k + 1) end
-  frames = frames + (6 * nt) ^ 3 / 6 + 2 * (6 * nt) ^ 2
-  tags = tags + (6 * nf) ^ 3 / 6 + 2 * (6 * nf) ^ 2
+  frames = frames + (6 * nt) ^ 3 / 6 + 2 * ((6 * nt) * (6 * nt))
+  tags = tags + (6 * nf) ^ 3 / 6 + 2 * ((6 * nf) * (6 * nf))
   return tags < frames and "tags" or "frames"
 end
 

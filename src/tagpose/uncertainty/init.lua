@@ -100,7 +100,8 @@ local function separation(r, F, sigma2, s, a1, a2, a3, nl, nt, b1, b2, b3)
   local k = -nl / nt
   local var = sigma2 * variance(F, n2 * p3 - n3 * p2, n3 * p1 - n1 * p3, n1 * p2 - n2 * p1,
     k * p1, k * p2, k * p3)
-  return max(sep, 0) ^ 2 / max(var, 1e-300)
+  local m = max(sep, 0)
+  return m * m / max(var, 1e-300)
 end
 
 -- The basins' part of the log-odds and the chord factors from the two separations (behind

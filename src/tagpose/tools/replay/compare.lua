@@ -28,16 +28,18 @@ M.APART = 30
 
 -- the rotation between two quaternions, degrees
 local function rotation_difference(a, b)
-  local na = sqrt(a.w ^ 2 + a.x ^ 2 + a.y ^ 2 + a.z ^ 2)
-  local nb = sqrt(b.w ^ 2 + b.x ^ 2 + b.y ^ 2 + b.z ^ 2)
+  local na = sqrt((a.w * a.w) + (a.x * a.x) + (a.y * a.y) + (a.z * a.z))
+  local nb = sqrt((b.w * b.w) + (b.x * b.x) + (b.y * b.y) + (b.z * b.z))
   local s = (a.w * b.w + a.x * b.x + a.y * b.y + a.z * b.z) < 0 and -1 or 1
-  local chord = sqrt((a.w / na - s * b.w / nb) ^ 2 + (a.x / na - s * b.x / nb) ^ 2
-    + (a.y / na - s * b.y / nb) ^ 2 + (a.z / na - s * b.z / nb) ^ 2)
+  local dw, dx = a.w / na - s * b.w / nb, a.x / na - s * b.x / nb
+  local dy, dz = a.y / na - s * b.y / nb, a.z / na - s * b.z / nb
+  local chord = sqrt(dw * dw + dx * dx + dy * dy + dz * dz)
   return deg(4 * asin(min(1, chord / 2)))
 end
 
 local function distance(p, q)
-  return sqrt((p.x - q.x) ^ 2 + (p.y - q.y) ^ 2 + (p.z - q.z) ^ 2)
+  local dx, dy, dz = p.x - q.x, p.y - q.y, p.z - q.z
+  return sqrt(dx * dx + dy * dy + dz * dz)
 end
 
 local Compare = {}
