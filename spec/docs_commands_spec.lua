@@ -170,7 +170,9 @@ local function script_of(entry, dir)
     end
     lines[#lines + 1] = (line:gsub("/tmp/", dir .. "/tmp/"))
   end
-  return "set -e\ncd " .. run.quote(dir) .. "\n" .. table.concat(lines, "\n") .. "\n"
+  -- (Python's bytecode cache would be written into bench/, which the scratch only links to)
+  return "set -e\nexport PYTHONDONTWRITEBYTECODE=1\ncd " .. run.quote(dir) .. "\n"
+    .. table.concat(lines, "\n") .. "\n"
 end
 
 describe("#docs every command the README and docs/ show", function()
