@@ -138,8 +138,26 @@ local spare = setmetatable({}, { __mode = "k" }) -- a result -> an alternative t
 local function alternative(mt)
   local first = mt[FIRST]
   local x = made(mt)
-  local alt = x[X_ALT] or spare[first] or {}
+  local alt = x[X_ALT] or spare[first]
   spare[first] = nil
+  local conf = rawget(first, "confidence")
+  if not alt then
+    -- (a new one in one constructor per table: filled key by key, its tables would grow
+    -- through a dozen resizes)
+    local r = mt
+    alt = {
+      position = { x = r[T_B + 1], y = r[T_B + 2], z = r[T_B + 3] },
+      rotation = { { r[R_B + 1], r[R_B + 2], r[R_B + 3] }, { r[R_B + 4], r[R_B + 5], r[R_B + 6] },
+        { r[R_B + 7], r[R_B + 8], r[R_B + 9] } },
+      quaternion = { w = r[Q_B + 1], x = r[Q_B + 2], y = r[Q_B + 3], z = r[Q_B + 4] },
+      error = r[ERR_B],
+      iterations = rawget(first, "iterations"),
+      refine_iterations = r[LIN_B] or nil,
+      confidence = conf ~= nil and 1 - conf or nil,
+    }
+    x[X_ALT] = alt
+    return setmetatable(alt, mt)
+  end
   local p, q, rt = alt.position, alt.quaternion, alt.rotation
   if type(p) ~= "table" then p = {} end
   if type(q) ~= "table" then q = {} end
@@ -154,7 +172,6 @@ local function alternative(mt)
   alt.position, alt.rotation, alt.quaternion = p, rt, q
   alt.error, alt.iterations, alt.refine_iterations = mt[ERR_B], rawget(first, "iterations"),
     mt[LIN_B] or nil
-  local conf = rawget(first, "confidence")
   alt.confidence, alt.covariance = conf ~= nil and 1 - conf or nil, nil
   x[X_ALT] = alt
   return setmetatable(alt, mt)
