@@ -47,29 +47,14 @@ end
 -- A pose's rotation given as a matrix, nested or flat, into r; or nil and what is wrong.
 local function read_matrix(m, r)
   if type(m) ~= "table" then return nil, "table expected, got " .. type(m) end
-  if type(m[1]) == "table" then
-    if type(m[2]) ~= "table" or type(m[3]) ~= "table" then return nil, "three rows expected" end
-    rotation.from_nested(m, r)
-  else
-    for i = 1, 9 do r[i] = m[i] end
-  end
-  for i = 1, 9 do
-    if not is_finite(r[i]) then
-      return nil, "nested {{r11, r12, r13}, {r21, r22, r23}, {r31, r32, r33}} or flat {r11, ..., "
-        .. "r33} of finite numbers expected"
+  if not rotation.read(m, r) then
+    if type(m[1]) == "table" and (type(m[2]) ~= "table" or type(m[3]) ~= "table") then
+      return nil, "three rows expected"
     end
+    return nil, "nested {{r11, r12, r13}, {r21, r22, r23}, {r31, r32, r33}} or flat {r11, ..., "
+      .. "r33} of finite numbers expected"
   end
-  local worst = 0
-  for i = 0, 6, 3 do
-    for j = 0, 6, 3 do
-      local d = r[i + 1] * r[j + 1] + r[i + 2] * r[j + 2] + r[i + 3] * r[j + 3]
-      if i == j then d = d - 1 end
-      if d < 0 then d = -d end
-      if d > worst then worst = d end
-    end
-  end
-  local det = r[1] * (r[5] * r[9] - r[6] * r[8]) - r[2] * (r[4] * r[9] - r[6] * r[7])
-    + r[3] * (r[4] * r[8] - r[5] * r[7])
+  local worst, det = rotation.deviation(r)
   if not (worst <= M.TOLERANCE and det > 0) then
     return nil, ("not a rotation matrix (largest entry of R·Rᵀ - I %.3g, determinant %.3g)")
       :format(worst, det)

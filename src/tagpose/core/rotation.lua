@@ -311,6 +311,45 @@ M.RPY_TOLERANCE = 1e-6
 
 local rpy_flat = {}
 
+--- A rotation given as a matrix, nested `r[row][col]` or flat row-major, read into `out`
+-- (flat), its nine entries checked finite: `out`, or nil where it is not such a matrix. It does
+-- not check that the matrix is a rotation (`deviation`).
+-- @tparam any m the matrix
+-- @tparam {number,...} out nine numbers to fill
+-- @treturn ?{number,...} out, or nil
+function M.read(m, out)
+  if type(m) ~= "table" then return nil end
+  if type(m[1]) == "table" then
+    if type(m[2]) ~= "table" or type(m[3]) ~= "table" then return nil end
+    M.from_nested(m, out)
+  else
+    for i = 1, 9 do out[i] = m[i] end
+  end
+  for i = 1, 9 do
+    if not is_finite(out[i]) then return nil end
+  end
+  return out
+end
+
+--- How far a flat 3×3 is from a rotation: the largest entry of `R·Rᵀ - I` (in absolute value)
+-- and its determinant (a rotation: 0 and 1).
+-- @tparam {number,...} r flat 3×3
+-- @treturn number the largest entry of `|R·Rᵀ - I|`
+-- @treturn number det R
+function M.deviation(r)
+  local worst = 0
+  for i = 0, 6, 3 do
+    for j = 0, 6, 3 do
+      local d = r[i + 1] * r[j + 1] + r[i + 2] * r[j + 2] + r[i + 3] * r[j + 3]
+      if i == j then d = d - 1 end
+      if d < 0 then d = -d end
+      if d > worst then worst = d end
+    end
+  end
+  return worst, r[1] * (r[5] * r[9] - r[6] * r[8]) - r[2] * (r[4] * r[9] - r[6] * r[7])
+    + r[3] * (r[4] * r[8] - r[5] * r[7])
+end
+
 --- Roll, pitch and yaw of a rotation matrix, `R = Rz(yaw)·Ry(pitch)·Rx(roll)` (ROS's
 -- convention). Yaw comes from R's first column, then roll from the second row of `Rz(-yaw)·R`,
 -- which is `(0, cos roll, -sin roll)` whatever the pitch: so `from_rpy(to_rpy(R))` is R to
@@ -325,38 +364,17 @@ local rpy_flat = {}
 -- @usage
 -- local roll, pitch, yaw = tagpose.rotation.to_rpy(pose.rotation)
 function M.to_rpy(r)
-  local bad = type(r) ~= "table"
-  if not bad then
-    if type(r[1]) == "table" then
-      bad = type(r[2]) ~= "table" or type(r[3]) ~= "table"
-      if not bad then r = M.from_nested(r, rpy_flat) end
-    end
-  end
-  if not bad then
-    for i = 1, 9 do
-      if not is_finite(r[i]) then bad = true end
-    end
-  end
-  if bad then
+  r = M.read(r, rpy_flat)
+  if not r then
     args.raise(1, "to_rpy", "rotation matrix expected: nested {{r11, r12, r13}, {r21, r22, r23}, "
       .. "{r31, r32, r33}} or flat {r11, ..., r33} of finite numbers", 2)
   end
-  local r11, r12, r13, r21, r22, r23, r31 = r[1], r[2], r[3], r[4], r[5], r[6], r[7]
-  local worst = 0
-  for i = 0, 6, 3 do
-    for j = 0, 6, 3 do
-      local d = r[i + 1] * r[j + 1] + r[i + 2] * r[j + 2] + r[i + 3] * r[j + 3]
-      if i == j then d = d - 1 end
-      if d < 0 then d = -d end
-      if d > worst then worst = d end
-    end
-  end
-  local det = r11 * (r22 * r[9] - r23 * r[8]) - r12 * (r21 * r[9] - r23 * r31)
-    + r13 * (r21 * r[8] - r22 * r31)
+  local worst, det = M.deviation(r)
   if not (worst <= M.RPY_TOLERANCE and det > 0) then
     args.raise(1, "to_rpy", ("not a rotation matrix (largest entry of R·Rᵀ - I %.3g, "
       .. "determinant %.3g)"):format(worst, det), 2)
   end
+  local r11, r12, r13, r21, r22, r23, r31 = r[1], r[2], r[3], r[4], r[5], r[6], r[7]
   local h = sqrt(r11 * r11 + r21 * r21)
   local yaw = 0
   if h >= M.GIMBAL_LOCK then yaw = atan2(r21, r11) end
