@@ -1,5 +1,5 @@
---- Poses of a tag: its corners in the camera, their reprojection error, and the public result
--- table.
+--- Poses of a tag: its corners in the camera and their reprojection error (the public result
+-- table is `tagpose.core.result`'s).
 --
 -- Internally a pose is a flat rotation `r` (row-major 3×3, tag → camera, see
 -- `tagpose.rotation`) and a translation `tx, ty, tz` (the tag centre in the camera frame, in the
@@ -8,7 +8,6 @@
 -- side. Pixels are a flat array `{u1, v1, u2, v2, u3, v3, u4, v4}`.
 -- @module tagpose.core.pose
 
-local rotation = require("tagpose.core.rotation")
 local lsq = require("tagpose.core.lsq")
 
 local sqrt = math.sqrt
@@ -49,69 +48,6 @@ function M.reprojection_error(C, r, tx, ty, tz, half, px)
     sum = sum + du * du + dv * dv
   end
   return sqrt(sum / 4)
-end
-
---- Fill (or create) a public pose table from a candidate pose.
--- A new table is built with table constructors (one allocation per table); `into` is filled in
--- place, reusing its sub-tables, so that a caller who passes the same table every frame
--- allocates nothing.
--- @tparam table cand a candidate record (`tagpose.core.pipeline.candidate`: `r`, `tx`, `ty`, `tz`
---   and the quaternion `qw`, `qx`, `qy`, `qz`)
--- @tparam number err RMS reprojection error (px)
--- @tparam int iterations solveQuad iterations
--- @tparam[opt] int refine_iterations refinement linearisations (refined method)
--- @tparam[opt] table into a pose table to fill and return instead of a new one
--- @tparam[opt] boolean top a new table is a solve's result: it has room made, in the one
---   allocation, for the `confidence`, `alternative` and `track` its caller sets (placeholders
---   1, false, false)
--- @treturn table `{position =, rotation =, quaternion =, error =, iterations =,
---   refine_iterations =}`
-function M.result(cand, err, iterations, refine_iterations, into, top)
-  local r, w, x, y, z = cand.r, cand.qw, cand.qx, cand.qy, cand.qz
-  local tx, ty, tz = cand.tx, cand.ty, cand.tz
-  if not into and top then
-    return {
-      position = { x = tx, y = ty, z = tz },
-      rotation = { { r[1], r[2], r[3] }, { r[4], r[5], r[6] }, { r[7], r[8], r[9] } },
-      quaternion = { w = w, x = x, y = y, z = z },
-      error = err,
-      iterations = iterations,
-      refine_iterations = refine_iterations,
-      confidence = 1,
-      alternative = false,
-      track = false,
-    }
-  end
-  if not into then
-    return {
-      position = { x = tx, y = ty, z = tz },
-      rotation = { { r[1], r[2], r[3] }, { r[4], r[5], r[6] }, { r[7], r[8], r[9] } },
-      quaternion = { w = w, x = x, y = y, z = z },
-      error = err,
-      iterations = iterations,
-      refine_iterations = refine_iterations,
-    }
-  end
-  local p = into.position
-  if type(p) ~= "table" then
-    p = {}
-    into.position = p
-  end
-  p.x, p.y, p.z = tx, ty, tz
-  local rt = into.rotation
-  if type(rt) ~= "table" then
-    rt = {}
-    into.rotation = rt
-  end
-  rotation.to_nested(r, rt)
-  local qt = into.quaternion
-  if type(qt) ~= "table" then
-    qt = {}
-    into.quaternion = qt
-  end
-  qt.w, qt.x, qt.y, qt.z = w, x, y, z
-  into.error, into.iterations, into.refine_iterations = err, iterations, refine_iterations
-  return into
 end
 
 --- True when a candidate pose and its error are finite.
