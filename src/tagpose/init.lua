@@ -13,14 +13,11 @@ local args = require("tagpose.core.args")
 local camera_model = require("tagpose.core.camera")
 local solvequad = require("tagpose.core.solvequad")
 local rotation = require("tagpose.core.rotation")
-local pose = require("tagpose.core.pose")
 local pipeline = require("tagpose.core.pipeline")
 local result = require("tagpose.core.result")
-local refine = require("tagpose.core.refine")
 
 local is_positive, describe, is_finite = args.is_positive, args.describe, compat.is_finite
 local sqrt = math.sqrt
-local to_quaternion = rotation.to_quaternion
 
 local M = {
   _VERSION = "tagpose 0.3.0",
@@ -150,16 +147,10 @@ end
 -- The result of the refined method from an ordered workspace: the better fit, or with a prior
 -- the tracking filter's choice (`tagpose.track`), whose state goes into the result's `track`.
 local function refined_result(w, camera, half, prior, into, sigma, time)
+  local ok, why = pipeline.finite(w)
+  if not ok then return nil, why end
   local a, b = w.first, w.count == 2 and w.second or nil
-  local ea = sqrt(a.sse / 4)
-  if not pose.is_finite(a, ea) then
-    return nil, "tagpose: no finite pose for these corners"
-  end
-  local eb
-  if b then
-    eb = sqrt(b.sse / 4)
-    if not pose.is_finite(b, eb) then b = nil end
-  end
+  local ea, eb = sqrt(a.sse / 4), b and sqrt(b.sse / 4)
   local size = side(w.px)
   local sigma2 = sigma and sigma * sigma or nil
   if not prior then
@@ -183,14 +174,9 @@ end
 -- pose is not a least-squares minimum and its method does not look at the other: its
 -- covariance is σ² H⁻¹ at it, its confidence 1.
 local function seed_result(w, camera, half, into, sigma, time)
-  local a = w.first
-  a.qw, a.qx, a.qy, a.qz = to_quaternion(a.r)
-  local err = pose.reprojection_error(w.C, a.r, a.tx, a.ty, a.tz, half, w.px)
-  if not pose.is_finite(a, err) then
-    return nil, "tagpose: no finite pose for these corners"
-  end
-  a.sse = refine.normal(camera, w.px, half, a.r, a.tx, a.ty, a.tz, a.normal)
-  return result.new(a, err, nil, nil, w.iterations, nil, nil, camera, half,
+  local err, why = pipeline.finish_seed(w, camera, half)
+  if not err then return nil, why end
+  return result.new(w.first, err, nil, nil, w.iterations, nil, nil, camera, half,
     sigma and sigma * sigma or nil, side(w.px), time, into)
 end
 

@@ -33,6 +33,7 @@ local solvequad = require("tagpose.core.solvequad")
 local ippe = require("tagpose.core.ippe")
 local refine = require("tagpose.core.refine")
 local rotation = require("tagpose.core.rotation")
+local pose = require("tagpose.core.pose")
 
 local huge = math.huge
 local to_quaternion = rotation.to_quaternion
@@ -220,11 +221,38 @@ end
 local sqrt = math.sqrt
 
 -- Is a candidate's pose finite, and its error?
-local function finite(c)
+local function is_finite(c)
   local r = c.r
   local s = c.tx + c.ty + c.tz + sqrt(c.sse / 4)
   for i = 1, 9 do s = s + r[i] end
   return s == s and s < huge and s > -huge
+end
+
+--- The refined method's last stage: the better candidate finite, and the other minimum kept
+-- only when it is finite too (else `w.count` 1).
+-- @tparam table w a workspace after `refined`
+-- @treturn true
+-- @return nil, string when the better candidate is not finite
+function M.finite(w)
+  if not is_finite(w.first) then return nil, "tagpose: no finite pose for these corners" end
+  if w.count == 2 and not is_finite(w.second) then w.count = 1 end
+  return true
+end
+
+--- The report's method's last stage: its candidate's quaternion, RMS reprojection error (px),
+-- finiteness, and the normal equations and `sse` at it (what the uncertainty reads).
+-- @tparam table w a workspace after `seed`
+-- @tparam table camera the checked camera
+-- @tparam number half half the tag side
+-- @treturn number the candidate's RMS reprojection error (px)
+-- @return nil, string when the pose or its error is not finite
+function M.finish_seed(w, camera, half)
+  local a = w.first
+  a.qw, a.qx, a.qy, a.qz = to_quaternion(a.r)
+  local err = pose.reprojection_error(w.C, a.r, a.tx, a.ty, a.tz, half, w.px)
+  if not pose.is_finite(a, err) then return nil, "tagpose: no finite pose for these corners" end
+  a.sse = refine.normal(camera, w.px, half, a.r, a.tx, a.ty, a.tz, a.normal)
+  return err
 end
 
 --- The whole refined pipeline for one tag whose corners are in `w.px`, with the default
@@ -240,9 +268,7 @@ function M.tag(w, camera, half)
   local ok, why = M.prepare(w, camera)
   if ok then ok, why = M.refined(w, half, M.REFINED_TOLERANCE, solvequad.MAX_ITERATIONS) end
   if not ok then return nil, why end
-  if not finite(w.first) then return nil, "tagpose: no finite pose for these corners" end
-  if w.count == 2 and not finite(w.second) then w.count = 1 end
-  return true
+  return M.finite(w)
 end
 
 return M

@@ -31,11 +31,8 @@ local args = require("tagpose.core.args")
 local camera_model = require("tagpose.core.camera")
 local compat = require("tagpose.core.compat")
 local pipeline = require("tagpose.core.pipeline")
-local pose = require("tagpose.core.pose")
 local result = require("tagpose.core.result")
-local refine = require("tagpose.core.refine")
 local solvequad = require("tagpose.core.solvequad")
-local rotation = require("tagpose.core.rotation")
 local track = require("tagpose.track")
 local tracks = require("tagpose.tracker.tracks")
 local associate = require("tagpose.tracker.associate")
@@ -237,24 +234,17 @@ local function solve(self, i, t, size, time)
   if self.seed then
     ok, why = pipeline.seed(w, half, solvequad.TOLERANCE, solvequad.MAX_ITERATIONS)
     if not ok then return nil, why end
-    local a = w.first
-    a.qw, a.qx, a.qy, a.qz = rotation.to_quaternion(a.r)
-    local err = pose.reprojection_error(w.C, a.r, a.tx, a.ty, a.tz, half, w.px)
-    if not pose.is_finite(a, err) then return nil, "tagpose: no finite pose for these corners" end
-    a.sse = refine.normal(camera, w.px, half, a.r, a.tx, a.ty, a.tz, a.normal)
-    return result.new(a, err, nil, nil, w.iterations, nil, nil, camera, half, self.sigma2,
+    local err
+    err, why = pipeline.finish_seed(w, camera, half)
+    if not err then return nil, why end
+    return result.new(w.first, err, nil, nil, w.iterations, nil, nil, camera, half, self.sigma2,
       self.ss[i], time), 1, 0.5, 0.5
   end
   ok, why = pipeline.refined(w, half, pipeline.REFINED_TOLERANCE, solvequad.MAX_ITERATIONS)
+  if ok then ok, why = pipeline.finite(w) end
   if not ok then return nil, why end
   local a, b = w.first, w.count == 2 and w.second or nil
-  local ea = sqrt(a.sse / 4)
-  if not pose.is_finite(a, ea) then return nil, "tagpose: no finite pose for these corners" end
-  local eb
-  if b then
-    eb = sqrt(b.sse / 4)
-    if not pose.is_finite(b, eb) then b = nil end
-  end
+  local ea, eb = sqrt(a.sse / 4), b and sqrt(b.sse / 4)
   local state = t and t.state or track.new_state()
   local started = state.count == 0
   -- a new track starts from the noise the tracker measured on its tracks so far (none: the
