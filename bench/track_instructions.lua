@@ -1,8 +1,9 @@
 -- The workload whose instructions bench/track_instructions.sh counts: the first N rows of a
--- sequence set, each solved alone (`plain`) or fed to tagpose.tracker, one detection a frame
--- (`tracker`), with nothing else done; N = 0 measures the start-up to subtract.
+-- sequence set, each solved alone (`plain`), solved with its `confidence` and `covariance` read
+-- (`read`) or fed to tagpose.tracker, one detection a frame (`tracker`), with nothing else
+-- done; N = 0 measures the start-up to subtract.
 --
---   lua5.4 bench/track_instructions.lua plain|tracker N [SEQUENCES_DIR]
+--   lua5.4 bench/track_instructions.lua plain|read|tracker N [SEQUENCES_DIR]
 --
 -- SEQUENCES_DIR defaults to bench/dev/sequences (frame = sequence * 1000 + k: a sequence's
 -- rows are one track). Run from the repository root.
@@ -12,8 +13,9 @@ local tagpose = require("tagpose")
 local log = require("tagpose.tools.log")
 
 local mode, n, dir = arg[1], tonumber(arg[2]), arg[3] or "bench/dev/sequences"
-if (mode ~= "plain" and mode ~= "tracker") or not n then
-  io.stderr:write("usage: lua bench/track_instructions.lua plain|tracker N [SEQUENCES_DIR]\n")
+if (mode ~= "plain" and mode ~= "read" and mode ~= "tracker") or not n then
+  io.stderr:write("usage: lua bench/track_instructions.lua plain|read|tracker N"
+    .. " [SEQUENCES_DIR]\n")
   os.exit(2)
 end
 local camera, info = assert(log.read_camera(dir .. "/camera.lua"))
@@ -24,6 +26,13 @@ for i = 1, n do corners[i] = rows[i].corners end
 local size = info.tag_size
 if mode == "plain" then
   for i = 1, n do tagpose.solve(corners[i], camera, size) end
+elseif mode == "read" then
+  for i = 1, n do
+    local pose = tagpose.solve(corners[i], camera, size)
+    if pose then
+      local _, _ = pose.confidence, pose.covariance[1][1]
+    end
+  end
 else
   local tr = tagpose.tracker.new(camera, size)
   local frame = { { id = 0, corners = nil } }

@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Instructions per row of a plain solve and of tracker:update (one detection a frame), counted
+# Instructions per row of a plain solve, of a solve whose confidence and covariance are read,
+# and of tracker:update (one detection a frame), counted
 # by valgrind's callgrind (repeatable whatever the machine's load): the count of N rows less the
 # count of none, over N (bench/track_instructions.lua runs the rows).
 #
@@ -17,7 +18,9 @@ count() {
     "$1" "$2" "$dir" 2>&1 | sed -n 's/.*Collected : //p'
 }
 p0=$(count plain 0); p=$(count plain "$n")
+r0=$(count read 0); r=$(count read "$n")
 t0=$(count tracker 0); t=$(count tracker "$n")
-plain=$(( (p - p0) / n )); tracker=$(( (t - t0) / n ))
-echo "$lua, $n rows of $dir: plain solve $plain instructions a row, tracker:update $tracker" \
-  "($(awk "BEGIN {printf \"%.2f\", $tracker / $plain}") times)"
+plain=$(( (p - p0) / n )); read=$(( (r - r0) / n )); tracker=$(( (t - t0) / n ))
+times() { awk "BEGIN {printf \"%.2f\", $1 / $plain}"; }
+echo "$lua, $n rows of $dir: plain solve $plain instructions a row," \
+  "read $read ($(times "$read") times), tracker:update $tracker ($(times "$tracker") times)"

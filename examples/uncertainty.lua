@@ -258,8 +258,7 @@ local function score_tags(dir, sigma)
         local q = best.position
         refine.normal(camera, flat, tag_size / 2, rotation.from_nested(best.rotation), q.x,
           q.y, q.z, normal)
-        cov = uncertainty.covariance({ normal = normal }, (sigma or uncertainty.DEFAULT_SIGMA) ^ 2,
-          {})
+        cov = uncertainty.covariance({ normal = normal }, (sigma or uncertainty.DEFAULT_SIGMA) ^ 2)
       end
       local m2 = mahalanobis(cov, be, 6) or math.huge
       n = n + 1
