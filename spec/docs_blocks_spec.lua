@@ -12,9 +12,7 @@ local camera = blocks_support.camera
 
 local ROOT = run.run("pwd"):gsub("%s+$", "")
 
-local dir = os.tmpname()
-os.remove(dir)
-os.execute("mkdir -p " .. run.quote(dir .. "/cube2"))
+local dir = run.tmpdir("cube2")
 
 -- A glued cube's calibration log, its nominal layout and camera, calibrated by the command the
 -- pages name; a frame of three copies of the cube (its detections in a Lua data file) and

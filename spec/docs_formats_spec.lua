@@ -10,9 +10,7 @@ local ROOT = run.run("pwd")
 ROOT = ROOT:gsub("%s+$", "")
 
 -- a folder holding the files the examples name
-local dir = os.tmpname()
-os.remove(dir)
-os.execute("mkdir -p " .. run.quote(dir))
+local dir = run.tmpdir()
 for name, fixture in pairs({ ["ost.yaml"] = "spec/fixtures/calibration/ost.yaml",
   ["out_camera_data.xml"] = "spec/fixtures/calibration/opencv_tutorial.xml",
   ["camchain.yaml"] = "spec/fixtures/calibration/kalibr_camchain.yaml",
