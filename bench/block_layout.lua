@@ -18,10 +18,9 @@ root = (root == nil or root == "") and "." or root
 package.path = root .. "/src/?.lua;" .. root .. "/src/?/init.lua;" .. package.path
 
 local tagpose = require("tagpose")
-local log = require("tagpose.tools.log")
-local rotation = require("tagpose.core.rotation")
+local set = dofile((arg[0]:match("^(.*)/[^/]*$") or ".") .. "/layout_set.lua")
 
-local sqrt, floor = math.sqrt, math.floor
+local check, quantile = set.check, set.quantile
 
 local dir = arg[1]
 if not dir then
@@ -29,53 +28,12 @@ if not dir then
   os.exit(2)
 end
 
-local function check(v, err)
-  if v == nil then
-    io.stderr:write(tostring(err) .. "\n")
-    os.exit(1)
-  end
-  return v
-end
-
-local camera = check(log.read_camera(dir .. "/camera.lua"))
-camera = { fx = camera.fx, fy = camera.fy, cx = camera.cx, cy = camera.cy,
-  distortion = camera.distortion, model = camera.model }
+local camera = set.camera(dir .. "/camera.lua")
 local nominal = check(tagpose.layout.read(dir .. "/nominal_layout.csv"))
 local truth = check(tagpose.layout.read(dir .. "/truth_layout.csv"))
 
--- frames of detections, in frame order, and their frame numbers
-local function frames_of(path)
-  local rows = check(log.read_corners(path))
-  local by, order = {}, {}
-  for _, r in ipairs(rows) do
-    if not by[r.frame] then
-      by[r.frame] = {}
-      order[#order + 1] = r.frame
-    end
-    local f = by[r.frame]
-    f[#f + 1] = { id = r.tag, corners = r.corners }
-  end
-  table.sort(order)
-  local frames = {}
-  for i, k in ipairs(order) do frames[i] = by[k] end
-  return frames, order
-end
-
-local function quantile(list, p)
-  table.sort(list)
-  if #list == 0 then return 0 / 0 end
-  local x = p * (#list - 1) + 1
-  local lo = floor(x)
-  local hi = math.min(lo + 1, #list)
-  return list[lo] + (x - lo) * (list[hi] - list[lo])
-end
-
-local test_frames, test_ids = frames_of(dir .. "/test/corners.csv")
-local truth_by = {}
-for _, e in ipairs(check(log.read_poses(dir .. "/test/truth_tags.csv"))) do
-  truth_by[e.frame] = truth_by[e.frame] or {}
-  truth_by[e.frame][e.tag] = e.pose.position
-end
+local test_frames, test_ids = set.frames_of(dir .. "/test/corners.csv")
+local truth_by = set.truth_by(dir .. "/test/truth_tags.csv")
 
 -- the pose a solver gives a frame: the body of layout.solve, the block of the most tags of
 -- block.solve
@@ -97,25 +55,12 @@ local function score(solve, layout)
   local t0 = os.clock()
   for k, dets in ipairs(test_frames) do poses[k] = solve(dets, layout) or false end
   local per = (os.clock() - t0) / #test_frames
-  local errs, solved = {}, 0
-  for k, pose in ipairs(poses) do
-    if pose then
-      solved = solved + 1
-      local r, t = rotation.from_nested(pose.rotation), pose.position
-      for id, p in pairs(truth_by[test_ids[k]]) do
-        local c = layout.tags[id].position
-        local x = r[1] * c.x + r[2] * c.y + r[3] * c.z + t.x
-        local y = r[4] * c.x + r[5] * c.y + r[6] * c.z + t.y
-        local z = r[7] * c.x + r[8] * c.y + r[9] * c.z + t.z
-        errs[#errs + 1] = 1000 * sqrt((x - p.x) ^ 2 + (y - p.y) ^ 2 + (z - p.z) ^ 2)
-      end
-    end
-  end
+  local errs, solved = set.centre_errors(poses, layout, truth_by, test_ids)
   return quantile(errs, 0.5), quantile(errs, 0.95), solved, 1e6 * per
 end
 
-local calibrated = check(tagpose.layout.calibrate(frames_of(dir .. "/calib/corners.csv"), camera,
-  nominal))
+local calibrated = check(tagpose.layout.calibrate(set.frames_of(dir .. "/calib/corners.csv"),
+  camera, nominal))
 
 print(("%s: %d test frames (%s)"):format(dir, #test_frames,
   _VERSION .. (rawget(_G, "jit") and " " .. rawget(_G, "jit").version or "")))

@@ -15,6 +15,7 @@
 --   local layout = map.layout(field, 0.1651)                    -- tagpose's layout
 --   local corners = map.corners(field.tags[1], 0.1651)          -- c1..c4 in the field, from
 --                                                               -- WPILib's frame directly
+--   local q = map.quaternion(map.matrix(w, x, y, z))            -- {w, x, y, z}, w >= 0
 --
 -- Self-contained (no tagpose): the benchmark's generator uses it too.
 
@@ -158,9 +159,9 @@ local function mul(a, b)
   return c
 end
 
--- unit quaternion (w >= 0) of a rotation (the largest of the trace and the diagonal picks the
--- branch)
-local function quaternion(m)
+--- The unit quaternion (w >= 0) of a rotation, flat row-major: `{w, x, y, z}` (Shepperd's
+-- branches: the largest of the trace and the diagonal picks one).
+function M.quaternion(m)
   local t = m[1] + m[5] + m[9]
   local w, x, y, z
   if t >= m[1] and t >= m[5] and t >= m[9] then
@@ -187,7 +188,7 @@ function M.layout(field, size)
   for _, id in ipairs(field.ids) do
     local t = field.tags[id]
     tags[id] = { size = size, position = { x = t.x, y = t.y, z = t.z },
-      quaternion = quaternion(mul(M.matrix(t.qw, t.qx, t.qy, t.qz), C)) }
+      quaternion = M.quaternion(mul(M.matrix(t.qw, t.qx, t.qy, t.qz), C)) }
   end
   return { tags = tags }
 end

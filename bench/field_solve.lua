@@ -15,6 +15,7 @@
 package.path = "./src/?.lua;./src/?/init.lua;" .. package.path
 local tagpose = require("tagpose")
 local transform = require("tagpose.transform")
+local log = require("tagpose.tools.log")
 local map = dofile((arg[0]:match("^(.*)/[^/]*$") or ".") .. "/field_map.lua")
 
 local sqrt, floor, clock = math.sqrt, math.floor, os.clock
@@ -22,18 +23,12 @@ local format = string.format
 
 local USAGE = "usage: lua bench/field_solve.lua DIR [--map PATH] [--sigma PX]"
 
-local function csv(path)
-  local rows, header = {}, nil
-  for line in io.lines(path) do
-    local fields = {}
-    for v in line:gmatch("[^,]+") do fields[#fields + 1] = v end
-    if not header then
-      header = fields
-    else
-      local row = {}
-      for k, name in ipairs(header) do row[name] = tonumber(fields[k]) end
-      rows[#rows + 1] = row
-    end
+-- The rows of a CSV table read whole by tagpose.tools.log (log.read_corners or log.read_csv),
+-- and its problems: a row that could not be read is an error here, not a view left out.
+local function checked(path, rows, problems)
+  if not rows then error(problems, 0) end
+  if problems[1] then
+    error(format("%s:%d: %s", path, problems[1].line, problems[1].reason), 0)
   end
   return rows
 end
@@ -48,15 +43,14 @@ end
 -- The views of DIR/corners.csv: frame -> detections, and the frames in order.
 local function read_views(dir)
   local frames, order = {}, {}
-  for _, row in ipairs(csv(dir .. "/corners.csv")) do
+  for _, row in ipairs(checked(dir .. "/corners.csv", log.read_corners(dir .. "/corners.csv"))) do
     local f = row.frame
     if not frames[f] then
       frames[f] = {}
       order[#order + 1] = f
     end
     local d = frames[f]
-    d[#d + 1] = { id = row.tag, corners = { { row.u1, row.v1 }, { row.u2, row.v2 },
-      { row.u3, row.v3 }, { row.u4, row.v4 } } }
+    d[#d + 1] = { id = row.tag, corners = row.corners }
   end
   return frames, order
 end
@@ -118,7 +112,11 @@ local function main(argv)
   local layout = map.layout(field, info.tag_size)
   local frames, order = read_views(dir)
   local truth = {}
-  for _, row in ipairs(csv(dir .. "/truth.csv")) do truth[row.frame] = row end
+  -- read_csv: rows, header, problems; or nil, why
+  local rows, refused, problems = log.read_csv(dir .. "/truth.csv")
+  for _, row in ipairs(checked(dir .. "/truth.csv", rows, rows and problems or refused)) do
+    truth[row.frame] = row
+  end
   local out = assert(io.open(dir .. "/tagpose.csv", "w"))
   out:write("frame,tags,x,y,z,qw,qx,qy,qz,error,confidence,ax,ay,az,alt_confidence\n")
   local errors, failed, total_time = {}, 0, 0

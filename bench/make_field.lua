@@ -111,27 +111,6 @@ local function camera_rotation(h, p, r)
   return { x[1], y[1], z[1], x[2], y[2], z[2], x[3], y[3], z[3] }
 end
 
--- quaternion (w >= 0) of a rotation, Shepperd's branches
-local function quaternion(m)
-  local t = m[1] + m[5] + m[9]
-  local w, x, y, z
-  if t >= m[1] and t >= m[5] and t >= m[9] then
-    w = sqrt(1 + t) / 2
-    x, y, z = (m[8] - m[6]) / (4 * w), (m[3] - m[7]) / (4 * w), (m[4] - m[2]) / (4 * w)
-  elseif m[1] >= m[5] and m[1] >= m[9] then
-    x = sqrt(1 + m[1] - m[5] - m[9]) / 2
-    w, y, z = (m[8] - m[6]) / (4 * x), (m[2] + m[4]) / (4 * x), (m[3] + m[7]) / (4 * x)
-  elseif m[5] >= m[9] then
-    y = sqrt(1 - m[1] + m[5] - m[9]) / 2
-    w, x, z = (m[3] - m[7]) / (4 * y), (m[2] + m[4]) / (4 * y), (m[6] + m[8]) / (4 * y)
-  else
-    z = sqrt(1 - m[1] - m[5] + m[9]) / 2
-    w, x, y = (m[4] - m[2]) / (4 * z), (m[3] + m[7]) / (4 * z), (m[6] + m[8]) / (4 * z)
-  end
-  if w < 0 then w, x, y, z = -w, -x, -y, -z end
-  return w, x, y, z
-end
-
 -- The pixels of a tag's corners (field frame) seen from a camera at c with rotation r, or nil
 -- when the tag is not seen.
 local function view_tag(tag, size, camera, r, c)
@@ -188,9 +167,9 @@ local function main(argv)
         end
       end
       if #rows > 0 then
-        local w, x, y, z = quaternion(r)
+        local q = map.quaternion(r)
         truth:write(format("%d,%d,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g\n", frame, #rows,
-          c[1], c[2], c[3], w, x, y, z))
+          c[1], c[2], c[3], q.w, q.x, q.y, q.z))
       end
     until #rows > 0
     histogram[#rows] = (histogram[#rows] or 0) + 1

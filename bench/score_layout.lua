@@ -22,10 +22,11 @@ root = (root == nil or root == "") and "." or root
 package.path = root .. "/src/?.lua;" .. root .. "/src/?/init.lua;" .. package.path
 
 local tagpose = require("tagpose")
-local log = require("tagpose.tools.log")
 local rotation = require("tagpose.core.rotation")
+local set = dofile((arg[0]:match("^(.*)/[^/]*$") or ".") .. "/layout_set.lua")
 
-local sqrt, deg, floor = math.sqrt, math.deg, math.floor
+local sqrt, deg = math.sqrt, math.deg
+local check, quantile = set.check, set.quantile
 
 local dir, out_path, quiet, options = nil, nil, false, {}
 do
@@ -50,46 +51,9 @@ if not dir then
   os.exit(2)
 end
 
-local function check(v, err)
-  if v == nil then
-    io.stderr:write(tostring(err) .. "\n")
-    os.exit(1)
-  end
-  return v
-end
-
-local camera = check(log.read_camera(dir .. "/camera.lua"))
-camera = { fx = camera.fx, fy = camera.fy, cx = camera.cx, cy = camera.cy,
-  distortion = camera.distortion, model = camera.model }
+local camera = set.camera(dir .. "/camera.lua")
 local nominal = check(tagpose.layout.read(dir .. "/nominal_layout.csv"))
 local truth = check(tagpose.layout.read(dir .. "/truth_layout.csv"))
-
--- frames of detections, in frame order
-local function frames_of(path)
-  local rows = check(log.read_corners(path))
-  local by, order = {}, {}
-  for _, r in ipairs(rows) do
-    if not by[r.frame] then
-      by[r.frame] = {}
-      order[#order + 1] = r.frame
-    end
-    local f = by[r.frame]
-    f[#f + 1] = { id = r.tag, corners = r.corners }
-  end
-  table.sort(order)
-  local frames = {}
-  for i, k in ipairs(order) do frames[i] = by[k] end
-  return frames, order
-end
-
-local function quantile(list, p)
-  table.sort(list)
-  if #list == 0 then return 0 / 0 end
-  local x = p * (#list - 1) + 1
-  local lo = floor(x)
-  local hi = math.min(lo + 1, #list)
-  return list[lo] + (x - lo) * (list[hi] - list[lo])
-end
 
 local function pose_of(entry)
   local q, p = entry.quaternion, entry.position
@@ -126,39 +90,22 @@ local function pairs_error(layout)
   return quantile(dist, 0.5), quantile(dist, 1), quantile(ang, 0.5), quantile(ang, 1)
 end
 
-local test_frames, test_ids = frames_of(dir .. "/test/corners.csv")
-local truth_rows = check(log.read_poses(dir .. "/test/truth_tags.csv"))
-local truth_by = {}
-for _, e in ipairs(truth_rows) do
-  truth_by[e.frame] = truth_by[e.frame] or {}
-  truth_by[e.frame][e.tag] = e.pose.position
-end
+local test_frames, test_ids = set.frames_of(dir .. "/test/corners.csv")
+local truth_by = set.truth_by(dir .. "/test/truth_tags.csv")
 
 -- test centre errors with a layout: median, p95 (mm), frames solved, solve time per frame (s)
 local function test_error(layout)
-  local errs, solved = {}, 0
   local t0 = os.clock()
   local bodies = {}
-  for k, dets in ipairs(test_frames) do bodies[k] = tagpose.layout.solve(dets, camera, layout) end
-  local per = (os.clock() - t0) / #test_frames
-  for k, body in ipairs(bodies) do
-    if body then
-      solved = solved + 1
-      local r = rotation.from_nested(body.rotation)
-      local t = body.position
-      for id, p in pairs(truth_by[test_ids[k]]) do
-        local _, c = pose_of(layout.tags[id])
-        local x = r[1] * c.x + r[2] * c.y + r[3] * c.z + t.x
-        local y = r[4] * c.x + r[5] * c.y + r[6] * c.z + t.y
-        local z = r[7] * c.x + r[8] * c.y + r[9] * c.z + t.z
-        errs[#errs + 1] = 1000 * sqrt((x - p.x) ^ 2 + (y - p.y) ^ 2 + (z - p.z) ^ 2)
-      end
-    end
+  for k, dets in ipairs(test_frames) do
+    bodies[k] = tagpose.layout.solve(dets, camera, layout) or false
   end
+  local per = (os.clock() - t0) / #test_frames
+  local errs, solved = set.centre_errors(bodies, layout, truth_by, test_ids)
   return quantile(errs, 0.5), quantile(errs, 0.95), solved, per
 end
 
-local calib_frames = frames_of(dir .. "/calib/corners.csv")
+local calib_frames = set.frames_of(dir .. "/calib/corners.csv")
 local t0 = os.clock()
 local calibrated, report = tagpose.layout.calibrate(calib_frames, camera, nominal, options)
 local calib_time = os.clock() - t0

@@ -8,9 +8,7 @@ local run = require("support.run")
 local camera = { fx = 307.22, fy = 305.74, cx = 157.14, cy = 117.87, width = 320, height = 240 }
 local TAG, BLOCK = 0.0229, 0.0548
 
-local dir = os.tmpname()
-os.remove(dir)
-os.execute("mkdir -p " .. run.quote(dir))
+local dir = run.tmpdir()
 
 -- a corner log of the glued cube (sessions on three faces) and its camera file
 local function write_log(rng, truth)

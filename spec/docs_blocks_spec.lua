@@ -6,40 +6,13 @@ local tagpose = require("tagpose")
 local geometry = require("support.geometry")
 local blocks_support = require("support.blocks")
 local run = require("support.run")
+local docs = require("support.docs")
 
 local camera = blocks_support.camera
 
 local ROOT = run.run("pwd"):gsub("%s+$", "")
 
--- the fenced blocks of a Markdown text: {lang =, text =, line =}, in order
-local function fenced(text)
-  local out, lang, body, start = {}, nil, nil, nil
-  local n = 0
-  for line in (text .. "\n"):gmatch("([^\n]*)\n") do
-    n = n + 1
-    if lang == nil then
-      local l = line:match("^```(%w*)%s*$")
-      if l then lang, body, start = l, {}, n + 1 end
-    elseif line:match("^```%s*$") then
-      out[#out + 1] = { lang = lang, text = table.concat(body, "\n") .. "\n", line = start }
-      lang = nil
-    else
-      body[#body + 1] = line
-    end
-  end
-  return out
-end
-
--- the part of a text from a heading (plain text) to the next heading of its level or above
-local function section(text, heading, stop)
-  local a = assert(text:find(heading, 1, true), heading)
-  local b = text:find(stop, a + #heading, true) or #text
-  return text:sub(a, b)
-end
-
-local dir = os.tmpname()
-os.remove(dir)
-os.execute("mkdir -p " .. run.quote(dir .. "/cube2"))
+local dir = run.tmpdir("cube2")
 
 -- A glued cube's calibration log, its nominal layout and camera, calibrated by the command the
 -- pages name; a frame of three copies of the cube (its detections in a Lua data file) and
@@ -114,7 +87,7 @@ describe("docs/blocks.md", function()
 
   it("shows what examples/block_frame.lua prints", function()
     local shown
-    for _, b in ipairs(fenced(text)) do
+    for _, b in ipairs(docs.fenced(text)) do
       if b.lang == "" and b.text:match("^block 1: ") then shown = b.text end
     end
     local out, status = run.script("examples/block_frame.lua")
@@ -123,7 +96,7 @@ describe("docs/blocks.md", function()
   end)
 
   describe("a cube of its own", function()
-    local part = section(text, "**A cube of its own", "\n**How.**")
+    local part = docs.section(text, "**A cube of its own", "\n**How.**")
 
     it("is calibrated by the command the pages show", function()
       assert.equal(0, calibrate_status, calibrate_output)
@@ -131,7 +104,7 @@ describe("docs/blocks.md", function()
     end)
 
     local examples = 0
-    for i, b in ipairs(fenced(part)) do
+    for i, b in ipairs(docs.fenced(part)) do
       if b.lang == "lua" then
         examples = examples + 1
         it("runs its example " .. i .. " (line " .. b.line .. ")", function()
@@ -152,10 +125,10 @@ describe("docs/blocks.md", function()
 end)
 
 describe("docs/layouts.md, a calibrated cube back into tagpose.block.solve", function()
-  local part = section(run.read("docs/layouts.md"),
+  local part = docs.section(run.read("docs/layouts.md"),
     "### A calibrated cube back into `tagpose.block.solve`", "\n## ")
   local examples = 0
-  for i, b in ipairs(fenced(part)) do
+  for i, b in ipairs(docs.fenced(part)) do
     if b.lang == "lua" then
       examples = examples + 1
       it("runs its example and finds the cubes", function()

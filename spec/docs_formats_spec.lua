@@ -4,39 +4,13 @@
 local calibration = require("tagpose.formats.calibration")
 local tagpose = require("tagpose")
 local run = require("support.run")
+local docs = require("support.docs")
 
 local ROOT = run.run("pwd")
 ROOT = ROOT:gsub("%s+$", "")
 
--- the fenced blocks of a Markdown text: {lang =, text =, line =}, in order
-local function blocks(text)
-  local out, lang, body, start = {}, nil, nil, nil
-  local n = 0
-  for line in (text .. "\n"):gmatch("([^\n]*)\n") do
-    n = n + 1
-    if lang == nil then
-      local l = line:match("^```(%w*)%s*$")
-      if l then lang, body, start = l, {}, n + 1 end
-    elseif line:match("^```%s*$") then
-      out[#out + 1] = { lang = lang, text = table.concat(body, "\n") .. "\n", line = start }
-      lang = nil
-    else
-      body[#body + 1] = line
-    end
-  end
-  return out
-end
-
-local function section(text, heading)
-  local a = assert(text:find(heading, 1, true), heading)
-  local b = text:find("\n## ", a + #heading, true) or #text
-  return text:sub(a, b)
-end
-
 -- a folder holding the files the examples name
-local dir = os.tmpname()
-os.remove(dir)
-os.execute("mkdir -p " .. run.quote(dir))
+local dir = run.tmpdir()
 for name, fixture in pairs({ ["ost.yaml"] = "spec/fixtures/calibration/ost.yaml",
   ["out_camera_data.xml"] = "spec/fixtures/calibration/opencv_tutorial.xml",
   ["camchain.yaml"] = "spec/fixtures/calibration/kalibr_camchain.yaml",
@@ -67,7 +41,7 @@ local _ = corners, info
 
 describe("docs/cameras.md", function()
   local text = run.read("docs/cameras.md")
-  for i, b in ipairs(blocks(text)) do
+  for i, b in ipairs(docs.fenced(text)) do
     local where = "block " .. i .. " (line " .. b.line .. ", " .. b.lang .. ")"
     if b.lang == "yaml" or b.lang == "xml" or b.lang == "json" then
       it(where .. " is a calibration file that reads", function()
@@ -88,9 +62,9 @@ describe("docs/cameras.md", function()
 end)
 
 describe("docs/layouts.md, field maps", function()
-  local text = section(run.read("docs/layouts.md"), "## Field maps (WPILib)")
+  local text = docs.section(run.read("docs/layouts.md"), "## Field maps (WPILib)")
   local found = {}
-  for i, b in ipairs(blocks(text)) do
+  for i, b in ipairs(docs.fenced(text)) do
     found[b.lang] = true
     if b.lang == "json" then
       it("the field map shown reads", function()

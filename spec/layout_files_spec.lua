@@ -6,9 +6,7 @@ local tagpose = require("tagpose")
 local assertions = require("support.assertions")
 local run = require("support.run")
 
-local dir = os.tmpname()
-os.remove(dir)
-os.execute("mkdir -p " .. run.quote(dir))
+local dir = run.tmpdir()
 
 local function file(name, text)
   return run.write(dir .. "/" .. name, text)

@@ -3,9 +3,7 @@
 local output = require("tagpose.formats.output")
 local run = require("support.run")
 
-local dir = os.tmpname()
-os.remove(dir)
-os.execute("mkdir -p " .. run.quote(dir))
+local dir = run.tmpdir()
 
 local function entries()
   local out, names = run.run("ls -a " .. run.quote(dir)), {}

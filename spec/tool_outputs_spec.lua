@@ -7,9 +7,7 @@ local geometry = require("support.geometry")
 local layouts = require("support.layouts")
 local run = require("support.run")
 
-local dir = os.tmpname()
-os.remove(dir)
-os.execute("mkdir -p " .. run.quote(dir))
+local dir = run.tmpdir()
 
 local REPLAY, CALIBRATE = "bin/tagpose-replay", "bin/tagpose-calibrate"
 

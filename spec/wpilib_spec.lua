@@ -12,9 +12,7 @@ local FIELD = "spec/fixtures/field/wpilib_field.json"
 local TRUTH = dofile("spec/fixtures/field/truth.lua")
 local SIZE = 0.1651
 
-local dir = os.tmpname()
-os.remove(dir)
-os.execute("mkdir -p " .. run.quote(dir))
+local dir = run.tmpdir()
 
 local function file(name, text)
   return run.write(dir .. "/" .. name, text)

@@ -32,6 +32,15 @@ function R.script(path, ...)
   return R.run(table.concat(parts, " ") .. " 2>&1")
 end
 
+--- A new folder under the system's temporary folder, named by os.tmpname (the file it makes
+-- removed), created with `sub` inside it when given (mkdir -p); returns the folder, not `sub`.
+function R.tmpdir(sub)
+  local dir = os.tmpname()
+  os.remove(dir)
+  os.execute("mkdir -p " .. R.quote(sub and dir .. "/" .. sub or dir))
+  return dir
+end
+
 function R.write(path, text)
   local f = assert(io.open(path, "w"))
   f:write(text)
