@@ -22,8 +22,7 @@
 local compat = require("tagpose.core.compat")
 
 local byte, sub, find, char = string.byte, string.sub, string.find, string.char
-local decimal, is_finite = compat.decimal, compat.is_finite
-local floor = math.floor
+local decimal, is_finite, utf8_char = compat.decimal, compat.is_finite, compat.utf8_char
 
 local M = {}
 
@@ -79,17 +78,6 @@ local function skip(st, pos)
   end
 end
 
--- the UTF-8 bytes of a code point
-local function utf8(cp)
-  if cp < 0x80 then return char(cp) end
-  if cp < 0x800 then return char(0xC0 + floor(cp / 0x40), 0x80 + cp % 0x40) end
-  if cp < 0x10000 then
-    return char(0xE0 + floor(cp / 0x1000), 0x80 + floor(cp / 0x40) % 0x40, 0x80 + cp % 0x40)
-  end
-  return char(0xF0 + floor(cp / 0x40000), 0x80 + floor(cp / 0x1000) % 0x40,
-    0x80 + floor(cp / 0x40) % 0x40, 0x80 + cp % 0x40)
-end
-
 -- the code point of the \uXXXX at pos (the backslash), or a refusal
 local function hex4(st, pos)
   local h = sub(st.text, pos + 2, pos + 5)
@@ -125,7 +113,7 @@ local function read_string(st, pos)
       elseif cp >= 0xDC00 and cp <= 0xDFFF then
         fail(st, "a lone UTF-16 surrogate in \\u")
       end
-      n = n + 1; parts[n] = utf8(cp)
+      n = n + 1; parts[n] = utf8_char(cp)
     else
       local c = e and ESCAPES[e]
       if not c then fail(st, "unknown escape \\" .. sub(text, j + 1, j + 1) .. " in a string") end

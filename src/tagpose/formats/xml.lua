@@ -24,8 +24,10 @@
 -- is dropped. The reader runs in time linear in the text and calls no code it reads.
 -- @module tagpose.formats.xml
 
-local byte, sub, find, char = string.byte, string.sub, string.find, string.char
-local floor = math.floor
+local compat = require("tagpose.core.compat")
+
+local byte, sub, find = string.byte, string.sub, string.find
+local utf8_char = compat.utf8_char
 
 local M = {}
 
@@ -53,17 +55,6 @@ local function fail(st, pos, reason)
     Failure), 0)
 end
 
--- the UTF-8 bytes of a code point
-local function utf8(cp)
-  if cp < 0x80 then return char(cp) end
-  if cp < 0x800 then return char(0xC0 + floor(cp / 0x40), 0x80 + cp % 0x40) end
-  if cp < 0x10000 then
-    return char(0xE0 + floor(cp / 0x1000), 0x80 + floor(cp / 0x40) % 0x40, 0x80 + cp % 0x40)
-  end
-  return char(0xF0 + floor(cp / 0x40000), 0x80 + floor(cp / 0x1000) % 0x40,
-    0x80 + floor(cp / 0x40) % 0x40, 0x80 + cp % 0x40)
-end
-
 -- the text of a reference `&...;` (its inside given), or nil and why not
 local function reference(ref)
   local named = NAMED[ref]
@@ -80,7 +71,7 @@ local function reference(ref)
   if not cp or cp == 0 or cp > 0x10FFFF or (cp >= 0xD800 and cp <= 0xDFFF) then
     return nil, "'&" .. ref .. ";' is not a character"
   end
-  return utf8(cp)
+  return utf8_char(cp)
 end
 
 --- Replace the references of a text (`&lt;`, `&#10;`, ...) by their characters.
