@@ -55,22 +55,6 @@ local function extension(path)
   return (path:match("%.([%w]+)$") or ""):lower()
 end
 
-local function read_text(path)
-  local f, err = io.open(path, "rb")
-  if not f then return nil, "layout: " .. tostring(err) end
-  local text, rerr = f:read(M.MAX_BYTES + 1)
-  f:close()
-  if text == nil then
-    if rerr then return nil, "layout: " .. path .. ": " .. tostring(rerr) end
-    text = ""
-  end
-  if #text > M.MAX_BYTES then
-    return nil, "layout: " .. path .. ": larger than " .. M.MAX_BYTES .. " bytes (a layout of"
-      .. " thousands of tags is smaller)"
-  end
-  return text
-end
-
 -- "WHAT is not a tag id (...)"
 local function not_id(what)
   return what .. " is not a tag id (" .. model.ID .. ")"
@@ -292,8 +276,9 @@ function M.read(path, options)
     return nil, "layout: " .. path .. ": size is for WPILib field maps (.json): this file gives"
       .. " each tag's size"
   end
-  local text, err = read_text(path)
-  if not text then return nil, err end
+  local text, err = output.read_text(path, M.MAX_BYTES, "a layout of thousands of tags is"
+    .. " smaller")
+  if not text then return nil, "layout: " .. err end
   return decode(text, path, bundle, size)
 end
 

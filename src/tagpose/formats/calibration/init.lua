@@ -48,6 +48,7 @@ local entries = require("tagpose.formats.calibration.entries")
 local lua_file = require("tagpose.formats.calibration.lua_file")
 local ros = require("tagpose.formats.calibration.ros")
 local opencv = require("tagpose.formats.calibration.opencv")
+local output = require("tagpose.formats.output")
 
 local M = {}
 
@@ -171,18 +172,8 @@ function M.read(path, camera)
     error("bad argument #2 to 'read' (string expected for the camera's name, got "
       .. type(camera) .. ")", 2)
   end
-  local f, err = io.open(path, "rb")
-  if not f then return nil, "calibration: " .. tostring(err) end
-  local text, rerr = f:read(M.MAX_BYTES + 1)
-  f:close()
-  if text == nil then
-    if rerr then return nil, "calibration: " .. path .. ": " .. tostring(rerr) end
-    text = ""
-  end
-  if #text > M.MAX_BYTES then
-    return nil, "calibration: " .. path .. ": larger than " .. M.MAX_BYTES .. " bytes (a"
-      .. " calibration is a few lines)"
-  end
+  local text, err = output.read_text(path, M.MAX_BYTES, "a calibration is a few lines")
+  if not text then return nil, "calibration: " .. err end
   return M.decode(text, path, camera)
 end
 
