@@ -24,6 +24,7 @@
 
 local compat = require("tagpose.core.compat")
 local json = require("tagpose.formats.json")
+local failure = require("tagpose.formats.failure")
 local model = require("tagpose.layout.model")
 
 local is_finite = compat.is_finite
@@ -34,11 +35,8 @@ local M = {}
 --- The rotation from tagpose's tag frame to WPILib's, as a quaternion `w, x, y, z`.
 M.TURN = { w = 0.5, x = -0.5, y = -0.5, z = 0.5 }
 
-local Failure = {}
-
 local function fail(r, at, reason)
-  error(setmetatable({ message = "layout: " .. r.name .. ":" .. (at or 1) .. ": " .. reason },
-    Failure), 0)
+  failure.raise("layout: " .. r.name .. ":" .. (at or 1) .. ": " .. reason)
 end
 
 local function describe(v)
@@ -138,7 +136,7 @@ end
 
 local function parse(r, text)
   local doc, where = json.decode(text, r.name)
-  if doc == nil then error(setmetatable({ message = "layout: " .. where }, Failure), 0) end
+  if doc == nil then failure.raise("layout: " .. where) end
   r.where = where
   local keys = doc.field ~= nil and { "tags", "field" } or { "tags" }
   local _, lines = object(r, doc, 1, "the field map", keys)
@@ -172,10 +170,7 @@ function M.decode(text, name, size)
       .. " {size = S}, the side of the tags' black squares in metres (0.1651 for the 2024 and"
       .. " later FRC fields)"
   end
-  local ok, layout = pcall(parse, { name = name, size = size }, text)
-  if ok then return layout end
-  if getmetatable(layout) == Failure then return nil, layout.message end
-  error(layout, 0)
+  return failure.protect(parse, { name = name, size = size }, text)
 end
 
 return M

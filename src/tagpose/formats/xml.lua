@@ -25,6 +25,7 @@
 -- @module tagpose.formats.xml
 
 local compat = require("tagpose.core.compat")
+local failure = require("tagpose.formats.failure")
 
 local byte, sub, find = string.byte, string.sub, string.find
 local utf8_char = compat.utf8_char
@@ -33,8 +34,6 @@ local M = {}
 
 --- Deepest nesting of elements read (deeper input is refused).
 M.MAX_DEPTH = 64
-
-local Failure = {}
 
 local NAMED = { lt = "<", gt = ">", amp = "&", quot = '"', apos = "'" }
 local NAME = "^[%a_:][%w_:%.%-]*"
@@ -51,8 +50,7 @@ local function line_at(st, pos)
 end
 
 local function fail(st, pos, reason)
-  error(setmetatable({ message = st.name .. ":" .. line_at(st, pos) .. ": " .. reason },
-    Failure), 0)
+  failure.raise(st.name .. ":" .. line_at(st, pos) .. ": " .. reason)
 end
 
 -- the text of a reference `&...;` (its inside given), or nil and why not
@@ -255,18 +253,10 @@ end
 -- local root = xml.decode('<?xml version="1.0"?>\n<a k="v">1 2</a>', "f.xml")
 -- print(root.name, root.attributes.k, root[1], root.lines[1]) --> a v 1 2 2
 function M.decode(text, name)
-  if type(text) ~= "string" then
-    error("bad argument #1 to 'decode' (string expected, got " .. type(text) .. ")", 2)
-  end
-  if name ~= nil and type(name) ~= "string" then
-    error("bad argument #2 to 'decode' (string expected, got " .. type(name) .. ")", 2)
-  end
+  failure.check(text, name, true)
   local st = { text = text, name = name or "xml", line = 1, next_nl = find(text, "\n", 1, true),
     max_depth = M.MAX_DEPTH }
-  local ok, root = pcall(parse, st)
-  if ok then return root end
-  if getmetatable(root) == Failure then return nil, root.message end
-  error(root, 0)
+  return failure.protect(parse, st)
 end
 
 return M
