@@ -57,6 +57,7 @@ build = {
     ["tagpose.formats.calibration.opencv"] = "src/tagpose/formats/calibration/opencv.lua",
     ["tagpose.formats.calibration.ros"] = "src/tagpose/formats/calibration/ros.lua",
     ["tagpose.formats.calibration.storage"] = "src/tagpose/formats/calibration/storage.lua",
+    ["tagpose.formats.failure"] = "src/tagpose/formats/failure.lua",
     ["tagpose.formats.json"] = "src/tagpose/formats/json.lua",
     ["tagpose.formats.layout"] = "src/tagpose/formats/layout.lua",
     ["tagpose.formats.layout_encode"] = "src/tagpose/formats/layout_encode.lua",

@@ -135,6 +135,37 @@ describe("tagpose.layout.read() of a WPILib field map", function()
       end)
     end
 
+    it("an id of 2^53 or more, as every layout format does", function()
+      for _, id in ipairs({ "9007199254740992", "1152921504606846976", "1e19" }) do
+        local path = file("f.json", edit('"ID": 2', '"ID": ' .. id))
+        local none, why = tagpose.layout.read(path, { size = SIZE })
+        assert.is_nil(none, id)
+        assert.matches('^layout: .*f%.json:22: tags%[2%]%.ID: a tag id %(whole number >= 0%)'
+          .. ' expected, got number ', why, 1, false, id)
+      end
+      local path = file("f.json", edit('"ID": 2', '"ID": 9007199254740991'))
+      assert.is_table(assert(tagpose.layout.read(path, { size = SIZE })).tags[2 ^ 53 - 1])
+    end)
+
+    it("a zero quaternion, but not one whose squares overflow", function()
+      -- (1e200, 1e200, 0, 0) is a half turn about x, as (1, 1, 0, 0) is: turned into
+      -- tagpose's tag frame, (s, s, 0, 0)·(0.5, -0.5, -0.5, 0.5) = (s, 0, -s, 0)
+      local s = math.sqrt(0.5)
+      for _, scale in ipairs({ "1e200", "3e307", "1e-3", "1" }) do
+        local path = file("f.json", edit('"W": 1%.0,\n(%s*)"X": 0%.0,', '"W": ' .. scale
+          .. ',\n%1"X": ' .. scale .. ','))
+        local q = assert(tagpose.layout.read(path, { size = SIZE })).tags[1].quaternion
+        assert.quaternion_near({ w = s, x = 0, y = -s, z = 0 }, q, 1e-15, scale)
+      end
+      for _, scale in ipairs({ "1e-200", "1e-7" }) do
+        local path = file("f.json", edit('"W": 1%.0,', '"W": ' .. scale .. ','))
+        local none, why = tagpose.layout.read(path, { size = SIZE })
+        assert.is_nil(none, scale)
+        assert.equal("layout: " .. path .. ":12: tag 1.pose.rotation.quaternion: zero"
+          .. " quaternion", why)
+      end
+    end)
+
     it("a field map read without the tags' size, or with a bundle", function()
       local none, why = tagpose.layout.read(FIELD)
       assert.is_nil(none)

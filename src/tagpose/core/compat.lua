@@ -98,4 +98,20 @@ function M.decimal(s)
   return v
 end
 
+local char, floor = string.char, math.floor
+
+--- The UTF-8 bytes of a code point, the same on every VM (Lua 5.1 and LuaJIT have no
+-- `utf8.char`). The caller checks the code point: a whole number from 0 to 0x10FFFF.
+-- @tparam int cp
+-- @treturn string
+function M.utf8_char(cp)
+  if cp < 0x80 then return char(cp) end
+  if cp < 0x800 then return char(0xC0 + floor(cp / 0x40), 0x80 + cp % 0x40) end
+  if cp < 0x10000 then
+    return char(0xE0 + floor(cp / 0x1000), 0x80 + floor(cp / 0x40) % 0x40, 0x80 + cp % 0x40)
+  end
+  return char(0xF0 + floor(cp / 0x40000), 0x80 + floor(cp / 0x1000) % 0x40,
+    0x80 + floor(cp / 0x40) % 0x40, 0x80 + cp % 0x40)
+end
+
 return M

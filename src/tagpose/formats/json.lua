@@ -20,10 +20,10 @@
 -- @module tagpose.formats.json
 
 local compat = require("tagpose.core.compat")
+local failure = require("tagpose.formats.failure")
 
 local byte, sub, find, char = string.byte, string.sub, string.find, string.char
-local decimal, is_finite = compat.decimal, compat.is_finite
-local floor = math.floor
+local decimal, is_finite, utf8_char = compat.decimal, compat.is_finite, compat.utf8_char
 
 local M = {}
 
@@ -32,8 +32,6 @@ M.NULL = setmetatable({}, { __tostring = function() return "null" end })
 
 --- Deepest nesting of objects and arrays read (deeper input is refused).
 M.MAX_DEPTH = 64
-
-local Failure = {}
 
 -- the bytes the reader looks at
 local QUOTE, BACKSLASH, SLASH, NEWLINE, CR = 34, 92, 47, 10, 13
@@ -44,8 +42,7 @@ local ESCAPES = { [34] = '"', [92] = "\\", [47] = "/", [98] = "\b", [102] = "\f"
   [110] = "\n", [114] = "\r", [116] = "\t", [39] = "'" }
 
 local function fail(st, reason, at)
-  error(setmetatable({ message = st.name .. ":" .. (at or st.line) .. ": " .. reason }, Failure),
-    0)
+  failure.raise(st.name .. ":" .. (at or st.line) .. ": " .. reason)
 end
 
 -- a character of the text for a message
@@ -77,17 +74,6 @@ local function skip(st, pos)
       return pos
     end
   end
-end
-
--- the UTF-8 bytes of a code point
-local function utf8(cp)
-  if cp < 0x80 then return char(cp) end
-  if cp < 0x800 then return char(0xC0 + floor(cp / 0x40), 0x80 + cp % 0x40) end
-  if cp < 0x10000 then
-    return char(0xE0 + floor(cp / 0x1000), 0x80 + floor(cp / 0x40) % 0x40, 0x80 + cp % 0x40)
-  end
-  return char(0xF0 + floor(cp / 0x40000), 0x80 + floor(cp / 0x1000) % 0x40,
-    0x80 + floor(cp / 0x40) % 0x40, 0x80 + cp % 0x40)
 end
 
 -- the code point of the \uXXXX at pos (the backslash), or a refusal
@@ -125,7 +111,7 @@ local function read_string(st, pos)
       elseif cp >= 0xDC00 and cp <= 0xDFFF then
         fail(st, "a lone UTF-16 surrogate in \\u")
       end
-      n = n + 1; parts[n] = utf8(cp)
+      n = n + 1; parts[n] = utf8_char(cp)
     else
       local c = e and ESCAPES[e]
       if not c then fail(st, "unknown escape \\" .. sub(text, j + 1, j + 1) .. " in a string") end
@@ -252,16 +238,11 @@ end
 -- local doc, where = json.decode('{"tags": [{"ID": 1}]}', "field.json")
 -- print(doc.tags[1].ID, where[doc.tags][1]) --> 1 1
 function M.decode(text, name, null)
-  if type(text) ~= "string" then
-    error("bad argument #1 to 'decode' (string expected, got " .. type(text) .. ")", 2)
-  end
-  if name ~= nil and type(name) ~= "string" then
-    error("bad argument #2 to 'decode' (string expected, got " .. type(name) .. ")", 2)
-  end
+  failure.check(text, name, true)
   if null == nil then null = M.NULL end
   local st = { text = text, name = name or "json", line = 1, where = {}, null = null,
     max_depth = M.MAX_DEPTH }
-  local ok, value, where = pcall(function()
+  return failure.protect(function()
     local pos = 1
     if sub(text, 1, 3) == "\239\187\191" then pos = 4 end
     pos = skip(st, pos)
@@ -274,9 +255,6 @@ function M.decode(text, name, null)
     end
     return v, st.where
   end)
-  if ok then return value, where end
-  if getmetatable(value) == Failure then return nil, value.message end
-  error(value, 0)
 end
 
 return M

@@ -49,31 +49,24 @@ M.flip = encode.flip
 --- Largest layout file read, in bytes (some 7000 tags in CSV, 4000 in a Lua file).
 M.MAX_BYTES = 1048576
 
-local CSV_COLUMNS = { "id", "size", "x", "y", "z", "qw", "qx", "qy", "qz" }
+local CSV_COLUMNS = encode.CSV_COLUMNS
 
 local function extension(path)
   return (path:match("%.([%w]+)$") or ""):lower()
 end
 
-local function read_text(path)
-  local f, err = io.open(path, "rb")
-  if not f then return nil, "layout: " .. tostring(err) end
-  local text, rerr = f:read(M.MAX_BYTES + 1)
-  f:close()
-  if text == nil then
-    if rerr then return nil, "layout: " .. path .. ": " .. tostring(rerr) end
-    text = ""
-  end
-  if #text > M.MAX_BYTES then
-    return nil, "layout: " .. path .. ": larger than " .. M.MAX_BYTES .. " bytes (a layout of"
-      .. " thousands of tags is smaller)"
-  end
-  return text
-end
-
 -- "WHAT is not a tag id (...)"
 local function not_id(what)
   return what .. " is not a tag id (" .. model.ID .. ")"
+end
+
+-- Add a CSV or YAML line's tag: nil, or why not (`at` the line's "name:LINE: ").
+local function add_tag(tags, at, id, entry)
+  if not model.is_id(id) then return at .. not_id("id " .. tostring(id)) end
+  if tags[id] then return at .. "tag " .. encode.id_text(id) .. " is listed twice" end
+  local _, why = model.read_tag(entry, id)
+  if why then return at .. why end
+  tags[id] = entry
 end
 
 -- The fields of a CSV line, trimmed.
@@ -126,15 +119,10 @@ function M.decode_csv(text, name)
           if v == nil then return nil, at .. "column " .. c .. " is not a number" end
           row[c] = v
         end
-        if not model.is_id(row.id) then return nil, at .. not_id("id " .. tostring(row.id)) end
-        if tags[row.id] then
-          return nil, at .. "tag " .. M.id_text(row.id) .. " is listed twice"
-        end
-        local entry = { size = row.size, position = { x = row.x, y = row.y, z = row.z },
-          quaternion = { w = row.qw, x = row.qx, y = row.qy, z = row.qz } }
-        local _, rwhy = model.read_tag(entry, row.id)
-        if rwhy then return nil, at .. rwhy end
-        tags[row.id] = entry
+        local why = add_tag(tags, at, row.id, { size = row.size,
+          position = { x = row.x, y = row.y, z = row.z },
+          quaternion = { w = row.qw, x = row.qx, y = row.qy, z = row.qz } })
+        if why then return nil, why end
       end
     end
   end
@@ -198,15 +186,11 @@ function M.decode_yaml(text, name, bundle)
       if not x then return nil, why end
       v[key] = x
     end
-    if not model.is_id(v.id) then return nil, at .. not_id("id " .. tostring(v.id)) end
-    if tags[v.id] then return nil, at .. "tag " .. M.id_text(v.id) .. " is listed twice" end
     local w, x, y, z = M.flip(v.qw, v.qx, v.qy, v.qz)
     if w < 0 then w, x, y, z = -w, -x, -y, -z end
-    local entry = { size = v.size, position = { x = v.x, y = v.y, z = v.z },
-      quaternion = { w = w, x = x, y = y, z = z } }
-    local _, why = model.read_tag(entry, v.id)
-    if why then return nil, at .. why end
-    tags[v.id] = entry
+    local why = add_tag(tags, at, v.id, { size = v.size, position = { x = v.x, y = v.y, z = v.z },
+      quaternion = { w = w, x = x, y = y, z = z } })
+    if why then return nil, why end
   end
   if next(tags) == nil then
     return nil, name .. ":" .. (where[chosen] and where[chosen].layout or 1)
@@ -292,8 +276,9 @@ function M.read(path, options)
     return nil, "layout: " .. path .. ": size is for WPILib field maps (.json): this file gives"
       .. " each tag's size"
   end
-  local text, err = read_text(path)
-  if not text then return nil, err end
+  local text, err = output.read_text(path, M.MAX_BYTES, "a layout of thousands of tags is"
+    .. " smaller")
+  if not text then return nil, "layout: " .. err end
   return decode(text, path, bundle, size)
 end
 

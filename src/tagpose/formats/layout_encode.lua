@@ -10,7 +10,10 @@ local format, concat, byte = string.format, table.concat, string.byte
 
 local M = {}
 
-local CSV_COLUMNS = { "id", "size", "x", "y", "z", "qw", "qx", "qy", "qz" }
+--- The columns of a CSV layout, in the order written (also the keys of an apriltag_ros entry).
+M.CSV_COLUMNS = { "id", "size", "x", "y", "z", "qw", "qx", "qy", "qz" }
+
+local CSV_COLUMNS = M.CSV_COLUMNS
 
 --- The quaternion of a tag frame turned half a turn about its x axis: `q·(0, 1, 0, 0)`. Maps
 -- apriltag_ros' tag frame to tagpose's and back.

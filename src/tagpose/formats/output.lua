@@ -14,8 +14,10 @@
 -- * Where a rename cannot replace an existing file (Windows), the old file is first renamed
 --   aside and put back if the new one cannot take its place.
 --
--- Errors are `nil, "PATH: reason"` (the target's path: the caller adds its module's name).
--- This module does file I/O, so it is for writing files, never for the solve path.
+-- And files read whole up to a size (`read_text`: a file larger is refused unread).
+--
+-- Errors are `nil, "PATH: reason"` (the file's path: the caller adds its module's name).
+-- This module does file I/O, so it is for reading and writing files, never for the solve path.
 -- @module tagpose.formats.output
 
 local M = {}
@@ -186,6 +188,27 @@ function M.write(path, text)
   if not out then return nil, err end
   out:write(text)
   return out:commit()
+end
+
+--- Read a whole file of at most `max_bytes` bytes (no more than `max_bytes + 1` are read).
+-- @tparam string path
+-- @tparam int max_bytes
+-- @tparam string hint said of a file larger: `"PATH: larger than N bytes (HINT)"`
+-- @treturn string the file's text
+-- @return nil, string `"PATH: reason"`
+function M.read_text(path, max_bytes, hint)
+  local f, err = io.open(path, "rb")
+  if not f then return nil, tostring(err) end
+  local text, rerr = f:read(max_bytes + 1)
+  f:close()
+  if text == nil then
+    if rerr then return nil, path .. ": " .. tostring(rerr) end
+    text = ""
+  end
+  if #text > max_bytes then
+    return nil, path .. ": larger than " .. max_bytes .. " bytes (" .. hint .. ")"
+  end
+  return text
 end
 
 return M

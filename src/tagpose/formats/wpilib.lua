@@ -17,13 +17,17 @@
 -- each tag's rotation is `R_tagpose = R_wpilib·C`. The centre is the same point. The file gives
 -- no tag size: the caller does (the 2024 and later FRC fields use 36h11 tags whose black square
 -- is 6.5 in, 0.1651 m). `field` is checked (length and width in metres) and not kept: a layout
--- is its tags. A key the format does not have is refused, naming the key meant.
+-- is its tags. A key the format does not have is refused, naming the key meant. Ids are whole
+-- numbers >= 0 below 2^53 and quaternions are normalised without overflow, as in every layout
+-- format (`tagpose.layout.model`'s `is_id` and `unit_quaternion`).
 -- @module tagpose.formats.wpilib
 
 local compat = require("tagpose.core.compat")
 local json = require("tagpose.formats.json")
+local failure = require("tagpose.formats.failure")
+local model = require("tagpose.layout.model")
 
-local is_finite, floor = compat.is_finite, math.floor
+local is_finite = compat.is_finite
 local concat = table.concat
 
 local M = {}
@@ -31,11 +35,8 @@ local M = {}
 --- The rotation from tagpose's tag frame to WPILib's, as a quaternion `w, x, y, z`.
 M.TURN = { w = 0.5, x = -0.5, y = -0.5, z = 0.5 }
 
-local Failure = {}
-
 local function fail(r, at, reason)
-  error(setmetatable({ message = "layout: " .. r.name .. ":" .. (at or 1) .. ": " .. reason },
-    Failure), 0)
+  failure.raise("layout: " .. r.name .. ":" .. (at or 1) .. ": " .. reason)
 end
 
 local function describe(v)
@@ -100,7 +101,7 @@ local function read_tag(r, t, at, i)
   local what = "tags[" .. i .. "]"
   local _, lines = object(r, t, at, what, { "ID", "pose" })
   local id = t.ID
-  if not (is_finite(id) and id == floor(id) and id >= 0) then
+  if not (model.is_id(id) and id >= 0) then
     fail(r, lines.ID, what .. ".ID: a tag id (whole number >= 0) expected, got " .. describe(id))
   end
   what = "tag " .. id
@@ -113,11 +114,11 @@ local function read_tag(r, t, at, i)
   local q, qlines = object(r, rot.quaternion, rlines.quaternion, what .. ".pose.rotation"
     .. ".quaternion", { "W", "X", "Y", "Z" })
   local v = numbers(r, q, qlines, what .. ".pose.rotation.quaternion", { "W", "X", "Y", "Z" })
-  local norm = math.sqrt(v[1] * v[1] + v[2] * v[2] + v[3] * v[3] + v[4] * v[4])
-  if not (norm > 1e-6) then
+  local w, x, y, z = model.unit_quaternion(v[1], v[2], v[3], v[4])
+  if not w then
     fail(r, rlines.quaternion, what .. ".pose.rotation.quaternion: zero quaternion")
   end
-  local w, x, y, z = turned(v[1] / norm, v[2] / norm, v[3] / norm, v[4] / norm)
+  w, x, y, z = turned(w, x, y, z)
   return id, { size = r.size, position = { x = p[1], y = p[2], z = p[3] },
     quaternion = { w = w, x = x, y = y, z = z } }
 end
@@ -135,7 +136,7 @@ end
 
 local function parse(r, text)
   local doc, where = json.decode(text, r.name)
-  if doc == nil then error(setmetatable({ message = "layout: " .. where }, Failure), 0) end
+  if doc == nil then failure.raise("layout: " .. where) end
   r.where = where
   local keys = doc.field ~= nil and { "tags", "field" } or { "tags" }
   local _, lines = object(r, doc, 1, "the field map", keys)
@@ -169,10 +170,7 @@ function M.decode(text, name, size)
       .. " {size = S}, the side of the tags' black squares in metres (0.1651 for the 2024 and"
       .. " later FRC fields)"
   end
-  local ok, layout = pcall(parse, { name = name, size = size }, text)
-  if ok then return layout end
-  if getmetatable(layout) == Failure then return nil, layout.message end
-  error(layout, 0)
+  return failure.protect(parse, { name = name, size = size }, text)
 end
 
 return M

@@ -24,15 +24,16 @@
 -- is dropped. The reader runs in time linear in the text and calls no code it reads.
 -- @module tagpose.formats.xml
 
-local byte, sub, find, char = string.byte, string.sub, string.find, string.char
-local floor = math.floor
+local compat = require("tagpose.core.compat")
+local failure = require("tagpose.formats.failure")
+
+local byte, sub, find = string.byte, string.sub, string.find
+local utf8_char = compat.utf8_char
 
 local M = {}
 
 --- Deepest nesting of elements read (deeper input is refused).
 M.MAX_DEPTH = 64
-
-local Failure = {}
 
 local NAMED = { lt = "<", gt = ">", amp = "&", quot = '"', apos = "'" }
 local NAME = "^[%a_:][%w_:%.%-]*"
@@ -49,19 +50,7 @@ local function line_at(st, pos)
 end
 
 local function fail(st, pos, reason)
-  error(setmetatable({ message = st.name .. ":" .. line_at(st, pos) .. ": " .. reason },
-    Failure), 0)
-end
-
--- the UTF-8 bytes of a code point
-local function utf8(cp)
-  if cp < 0x80 then return char(cp) end
-  if cp < 0x800 then return char(0xC0 + floor(cp / 0x40), 0x80 + cp % 0x40) end
-  if cp < 0x10000 then
-    return char(0xE0 + floor(cp / 0x1000), 0x80 + floor(cp / 0x40) % 0x40, 0x80 + cp % 0x40)
-  end
-  return char(0xF0 + floor(cp / 0x40000), 0x80 + floor(cp / 0x1000) % 0x40,
-    0x80 + floor(cp / 0x40) % 0x40, 0x80 + cp % 0x40)
+  failure.raise(st.name .. ":" .. line_at(st, pos) .. ": " .. reason)
 end
 
 -- the text of a reference `&...;` (its inside given), or nil and why not
@@ -80,7 +69,7 @@ local function reference(ref)
   if not cp or cp == 0 or cp > 0x10FFFF or (cp >= 0xD800 and cp <= 0xDFFF) then
     return nil, "'&" .. ref .. ";' is not a character"
   end
-  return utf8(cp)
+  return utf8_char(cp)
 end
 
 --- Replace the references of a text (`&lt;`, `&#10;`, ...) by their characters.
@@ -264,18 +253,10 @@ end
 -- local root = xml.decode('<?xml version="1.0"?>\n<a k="v">1 2</a>', "f.xml")
 -- print(root.name, root.attributes.k, root[1], root.lines[1]) --> a v 1 2 2
 function M.decode(text, name)
-  if type(text) ~= "string" then
-    error("bad argument #1 to 'decode' (string expected, got " .. type(text) .. ")", 2)
-  end
-  if name ~= nil and type(name) ~= "string" then
-    error("bad argument #2 to 'decode' (string expected, got " .. type(name) .. ")", 2)
-  end
+  failure.check(text, name, true)
   local st = { text = text, name = name or "xml", line = 1, next_nl = find(text, "\n", 1, true),
     max_depth = M.MAX_DEPTH }
-  local ok, root = pcall(parse, st)
-  if ok then return root end
-  if getmetatable(root) == Failure then return nil, root.message end
-  error(root, 0)
+  return failure.protect(parse, st)
 end
 
 return M

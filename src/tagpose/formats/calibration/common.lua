@@ -9,22 +9,20 @@
 local compat = require("tagpose.core.compat")
 local camera_model = require("tagpose.core.camera")
 local yaml = require("tagpose.formats.yaml")
+local failure = require("tagpose.formats.failure")
 
 local is_finite = compat.is_finite
 local floor = math.floor
 
 local M = {}
 
---- The metatable of the refusals raised while reading.
-M.Failure = {}
-
-local Failure = M.Failure
+--- The metatable of the refusals raised while reading (`tagpose.formats.failure.Failure`).
+M.Failure = failure.Failure
 
 --- Refuse the file with a message as it is (`"calibration: ..."`).
+-- @function refuse
 -- @tparam string message
-function M.refuse(message)
-  error(setmetatable({ message = message }, Failure), 0)
-end
+M.refuse = failure.raise
 
 --- Refuse the file: `"calibration: NAME:LINE: reason"` (`"calibration: NAME: reason"`
 -- without a line).

@@ -48,6 +48,8 @@ local entries = require("tagpose.formats.calibration.entries")
 local lua_file = require("tagpose.formats.calibration.lua_file")
 local ros = require("tagpose.formats.calibration.ros")
 local opencv = require("tagpose.formats.calibration.opencv")
+local output = require("tagpose.formats.output")
+local failure = require("tagpose.formats.failure")
 
 local M = {}
 
@@ -123,30 +125,20 @@ end
 -- @raise `bad argument #n to 'decode' (...)` when `text` or `name` is not a string, or `camera`
 --   neither nil nor a string
 function M.decode(text, name, camera)
-  if type(text) ~= "string" then
-    error("bad argument #1 to 'decode' (string expected, got " .. type(text) .. ")", 2)
-  end
-  if type(name) ~= "string" then
-    error("bad argument #2 to 'decode' (string expected, got " .. type(name) .. ")", 2)
-  end
+  failure.check(text, name)
   if camera ~= nil and type(camera) ~= "string" then
     error("bad argument #3 to 'decode' (string expected for the camera's name, got "
       .. type(camera) .. ")", 2)
   end
   local kind = kind_of(text, name)
-  local ok, result, info
   if kind == "lua" then
     if camera ~= nil then
       return nil, "calibration: " .. name .. ": camera '" .. camera .. "' named, but this is not"
         .. " a Kalibr camchain (a Lua camera file has one camera)"
     end
-    ok, result, info = pcall(lua_file.read, text, name)
-  else
-    ok, result, info = pcall(data_camera, kind, text, name, camera)
+    return failure.protect(lua_file.read, text, name)
   end
-  if ok then return result, info end
-  if getmetatable(result) == common.Failure then return nil, result.message end
-  error(result, 0)
+  return failure.protect(data_camera, kind, text, name, camera)
 end
 
 --- Read a calibration file (a Lua camera file, ROS YAML, OpenCV YAML, XML or JSON, a Kalibr
@@ -171,18 +163,8 @@ function M.read(path, camera)
     error("bad argument #2 to 'read' (string expected for the camera's name, got "
       .. type(camera) .. ")", 2)
   end
-  local f, err = io.open(path, "rb")
-  if not f then return nil, "calibration: " .. tostring(err) end
-  local text, rerr = f:read(M.MAX_BYTES + 1)
-  f:close()
-  if text == nil then
-    if rerr then return nil, "calibration: " .. path .. ": " .. tostring(rerr) end
-    text = ""
-  end
-  if #text > M.MAX_BYTES then
-    return nil, "calibration: " .. path .. ": larger than " .. M.MAX_BYTES .. " bytes (a"
-      .. " calibration is a few lines)"
-  end
+  local text, err = output.read_text(path, M.MAX_BYTES, "a calibration is a few lines")
+  if not text then return nil, "calibration: " .. err end
   return M.decode(text, path, camera)
 end
 

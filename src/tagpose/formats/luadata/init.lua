@@ -19,6 +19,7 @@
 -- lexer's state record and the `where` table (`where[tbl][key]` = line) between its functions.
 -- @module tagpose.formats.luadata
 
+local failure = require("tagpose.formats.failure")
 local lexer = require("tagpose.formats.luadata.lexer")
 
 local fail, peek, take, describe = lexer.fail, lexer.peek, lexer.take, lexer.describe
@@ -209,16 +210,8 @@ end
 -- @usage
 -- local camera, where = luadata.decode("return { fx = 600, fy = 600 }", "camera.lua")
 function M.decode(text, name)
-  if type(text) ~= "string" then
-    error("bad argument #1 to 'decode' (string expected, got " .. type(text) .. ")", 2)
-  end
-  if name ~= nil and type(name) ~= "string" then
-    error("bad argument #2 to 'decode' (string expected, got " .. type(name) .. ")", 2)
-  end
-  local ok, result, where, value_line = pcall(parse, text, name or "lua")
-  if ok then return result, where, value_line end
-  if getmetatable(result) == lexer.Failure then return nil, result.message end
-  error(result, 0)
+  failure.check(text, name, true)
+  return failure.protect(parse, text, name or "lua")
 end
 
 return M

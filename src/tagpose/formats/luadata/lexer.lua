@@ -19,6 +19,7 @@
 -- @module tagpose.formats.luadata.lexer
 
 local compat = require("tagpose.core.compat")
+local failure = require("tagpose.formats.failure")
 
 local decimal = compat.decimal
 local byte, sub, find, char, concat, rep = string.byte, string.sub, string.find, string.char,
@@ -26,10 +27,8 @@ local byte, sub, find, char, concat, rep = string.byte, string.sub, string.find,
 
 local M = {}
 
---- The metatable of the refusals raised while reading.
-M.Failure = {}
-
-local Failure = M.Failure
+--- The metatable of the refusals raised while reading (`tagpose.formats.failure.Failure`).
+M.Failure = failure.Failure
 
 local CR, LF, HASH, QUOTE2, QUOTE1, LBRACKET = 13, 10, 35, 34, 39, 91
 
@@ -41,8 +40,7 @@ local ESCAPES = { a = "\a", b = "\b", f = "\f", n = "\n", r = "\r", t = "\t", v 
 -- @tparam string reason
 -- @tparam[opt] int at the line
 function M.fail(lx, reason, at)
-  error(setmetatable({ message = lx.name .. ":" .. (at or lx.line) .. ": " .. reason }, Failure),
-    0)
+  failure.raise(lx.name .. ":" .. (at or lx.line) .. ": " .. reason)
 end
 
 local fail = M.fail

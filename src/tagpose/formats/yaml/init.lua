@@ -35,6 +35,7 @@
 -- (block mappings and sequences) and `tagpose.formats.yaml.flow` (`[...]` and `{...}`).
 -- @module tagpose.formats.yaml
 
+local failure = require("tagpose.formats.failure")
 local scanner = require("tagpose.formats.yaml.scanner")
 local scalar = require("tagpose.formats.yaml.scalar")
 local block = require("tagpose.formats.yaml.block")
@@ -69,16 +70,8 @@ end
 -- print(doc.camera_matrix[yaml.TAG], doc.camera_matrix.rows) --> opencv-matrix 3
 -- print(where[doc].camera_matrix)                            --> 1
 function M.decode(text, name)
-  if type(text) ~= "string" then
-    error("bad argument #1 to 'decode' (string expected, got " .. type(text) .. ")", 2)
-  end
-  if name ~= nil and type(name) ~= "string" then
-    error("bad argument #2 to 'decode' (string expected, got " .. type(name) .. ")", 2)
-  end
-  local ok, value, where = pcall(parse, text, name or "yaml")
-  if ok then return value, where end
-  if getmetatable(value) == scanner.Failure then return nil, value.message end
-  error(value, 0)
+  failure.check(text, name, true)
+  return failure.protect(parse, text, name or "yaml")
 end
 
 return M

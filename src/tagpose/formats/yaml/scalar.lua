@@ -11,8 +11,8 @@
 local compat = require("tagpose.core.compat")
 local scanner = require("tagpose.formats.yaml.scanner")
 
-local decimal = compat.decimal
-local floor, huge = math.floor, math.huge
+local decimal, utf8_char = compat.decimal, compat.utf8_char
+local huge = math.huge
 local byte, sub, find, char, concat = string.byte, string.sub, string.find, string.char,
   table.concat
 local fail = scanner.fail
@@ -31,18 +31,6 @@ M.TAG = setmetatable({}, { __tostring = function() return "yaml.TAG" end })
 M.TAGS = { ["opencv-matrix"] = true, ["opencv-nd-matrix"] = true }
 
 local NULL, TAGS = M.NULL, M.TAGS
-
-local function utf8_char(code)
-  if code < 0x80 then return char(code) end
-  if code < 0x800 then
-    return char(0xC0 + floor(code / 0x40), 0x80 + code % 0x40)
-  end
-  if code < 0x10000 then
-    return char(0xE0 + floor(code / 0x1000), 0x80 + floor(code / 0x40) % 0x40, 0x80 + code % 0x40)
-  end
-  return char(0xF0 + floor(code / 0x40000), 0x80 + floor(code / 0x1000) % 0x40,
-    0x80 + floor(code / 0x40) % 0x40, 0x80 + code % 0x40)
-end
 
 local ESCAPES = { ["\\"] = "\\", ['"'] = '"', ["/"] = "/", b = "\b", f = "\f", n = "\n",
   r = "\r", t = "\t", ["0"] = "\0", [" "] = " " }

@@ -21,6 +21,8 @@
 -- what it reads.
 -- @module tagpose.formats.yaml.scanner
 
+local failure = require("tagpose.formats.failure")
+
 local byte, sub, find = string.byte, string.sub, string.find
 
 local M = {}
@@ -41,18 +43,15 @@ M.MARKER = -2
 local SPACE, TAB, HASH, PERCENT = M.SPACE, M.TAB, M.HASH, M.PERCENT
 local BLANK, MARKER = M.BLANK, M.MARKER
 
---- The metatable of the refusals raised while reading.
-M.Failure = {}
-
-local Failure = M.Failure
+--- The metatable of the refusals raised while reading (`tagpose.formats.failure.Failure`).
+M.Failure = failure.Failure
 
 --- Refuse the document: raise `"name:LINE: reason"` (LINE `at`, or the line being read).
 -- @tparam table st the state
 -- @tparam string reason
 -- @tparam[opt] int at the line
 function M.fail(st, reason, at)
-  error(setmetatable({ message = st.name .. ":" .. (at or st.line_no) .. ": " .. reason },
-    Failure), 0)
+  failure.raise(st.name .. ":" .. (at or st.line_no) .. ": " .. reason)
 end
 
 local fail = M.fail
