@@ -110,8 +110,8 @@ describe("tagpose.layout.read() of a WPILib field map", function()
     local cases = {
       { edit('"ID": 2', '"Id": 2'), "f.json:22: tags[2]: unknown key 'Id' (did you mean 'ID'?)" },
       { edit('"ID": 2', '"ID": 1'), "f.json:21: tag 1 is listed twice (first on line 3)" },
-      { edit('"ID": 2', '"ID": 2.5'), "f.json:22: tags[2].ID: a tag id (whole number >= 0)"
-        .. " expected, got number 2.5" },
+      { edit('"ID": 2', '"ID": 2.5'), "f.json:22: tags[2].ID: a tag id (a whole number >= 0,"
+        .. " below 2^53) expected, got number 2.5" },
       { edit('"x": 0%.0381', '"x": "0.0381"'), "f.json:7: tag 1.pose.translation.x: number"
         .. " expected, got string 0.0381" },
       { edit('"W": 1%.0,\n', ""), "f.json:12: tag 1.pose.rotation.quaternion: no W" },
@@ -140,8 +140,8 @@ describe("tagpose.layout.read() of a WPILib field map", function()
         local path = file("f.json", edit('"ID": 2', '"ID": ' .. id))
         local none, why = tagpose.layout.read(path, { size = SIZE })
         assert.is_nil(none, id)
-        assert.matches('^layout: .*f%.json:22: tags%[2%]%.ID: a tag id %(whole number >= 0%)'
-          .. ' expected, got number ', why, 1, false, id)
+        assert.matches('^layout: .*f%.json:22: tags%[2%]%.ID: a tag id %(a whole number >= 0,'
+          .. ' below 2%^53%) expected, got number ', why, 1, false, id)
       end
       local path = file("f.json", edit('"ID": 2', '"ID": 9007199254740991'))
       assert.is_table(assert(tagpose.layout.read(path, { size = SIZE })).tags[2 ^ 53 - 1])
