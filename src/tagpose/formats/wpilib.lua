@@ -102,7 +102,8 @@ local function read_tag(r, t, at, i)
   local _, lines = object(r, t, at, what, { "ID", "pose" })
   local id = t.ID
   if not (model.is_id(id) and id >= 0) then
-    fail(r, lines.ID, what .. ".ID: a tag id (a whole number >= 0, below 2^53) expected, got " .. describe(id))
+    fail(r, lines.ID, what .. ".ID: a tag id (a whole number >= 0, below 2^53) expected, got "
+      .. describe(id))
   end
   what = "tag " .. id
   local pose, plines = object(r, t.pose, lines.pose, what .. ".pose", { "translation", "rotation" })
