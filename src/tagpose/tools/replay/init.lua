@@ -76,16 +76,6 @@ local usage, fail = command.usage, command.fail
 
 local M = {}
 
--- the camera file's path: --camera, or camera.lua beside the log
-local function camera_path_of(opt)
-  if opt.camera then return opt.camera end
-  local path = (opt.log:match("^(.*)/[^/]*$") or ".") .. "/camera.lua"
-  if not command.exists(path) then
-    usage("no camera file: " .. path .. " does not exist; give --camera FILE")
-  end
-  return path
-end
-
 -- refuse an output that is one of the inputs (or another output), before reading anything
 local function refuse_clashes(opt, camera_path)
   local inputs = { { name = "the corner log", path = opt.log },
@@ -171,7 +161,8 @@ local function run(arg, open)
   local probe, perr = io.open(opt.log, "r")
   if not probe then fail("log: " .. tostring(perr)) end
   probe:close()
-  local camera_path = camera_path_of(opt)
+  local camera_path = command.command.camera_path(opt,
+    "no camera file: %s does not exist; give --camera FILE")
   refuse_clashes(opt, camera_path)
   local files_out = open_outputs(opt, open)
 
@@ -219,20 +210,7 @@ end
 -- @treturn int the exit status: 0 replayed, 1 a file could not be read or written (standard
 --   output included), 2 a usage error (an output that is one of the inputs included)
 function M.main(argv)
-  local open = {}
-  local ok, status = pcall(run, argv, open)
-  for i = #open, 1, -1 do open[i]:abort() end
-  if ok then status = setmetatable({ status = status, text = "" }, command.EXIT) end
-  if getmetatable(status) ~= command.EXIT then error(status, 0) end
-  if status.status ~= 0 then
-    io.stderr:write(status.text)
-    return status.status
-  end
-  -- what was written to standard output (the summary, --help) reached it, or status 1
-  local flushed, err = io.stdout:flush()
-  if flushed then return 0 end
-  io.stderr:write("replay: standard output: " .. tostring(err) .. "\n")
-  return 1
+  return command.command.main(run, argv)
 end
 
 return M
