@@ -113,11 +113,12 @@ local function towards(s)
   return text
 end
 
--- The corner log read into frames of detections `{id =, corners =}` (rows of one frame
--- number, in the order the numbers first come), keeping nothing else of a row; the number of
--- rows, and the malformed rows (the first 10 kept, with their count).
-local function read_frames(path)
-  local reader, err = log.corner_reader(path)
+-- The corner log (`file`, opened from `path`, closed here) read into frames of detections
+-- `{id =, corners =}` (rows of one frame number, in the order the numbers first come), keeping
+-- nothing else of a row; the number of rows, and the malformed rows (the first 10 kept, with
+-- their count).
+local function read_frames(path, file)
+  local reader, err = log.corner_reader(file)
   if not reader then fail(err:find(path, 1, true) and err or path .. ": " .. err) end
   local frames, index, nrows, problems = {}, {}, 0, { n = 0 }
   while true do
@@ -139,6 +140,7 @@ local function read_frames(path)
     end
   end
   reader:close()
+  file:close()
   return frames, nrows, problems
 end
 
@@ -179,7 +181,8 @@ end
 
 local function run(argv, open)
   local opt, options = parse(argv)
-  local camera_path = cmd.camera_path(opt, "no camera file %s; give --camera")
+  -- the log first: a log that cannot be read is named as such, not as a missing camera file
+  local log_file, camera_path = cmd.inputs(opt, "no camera file %s; give --camera")
   local out_file = open_output(opt, camera_path, open)
   local out = io.stdout
   local function say(fmt, ...)
@@ -197,7 +200,7 @@ local function run(argv, open)
     if not nominal then fail(lerr) end
   end
   -- the log
-  local frames, nrows, problems = read_frames(opt.log)
+  local frames, nrows, problems = read_frames(opt.log, log_file)
   local ok, layout, report = pcall(tagpose.layout.calibrate, frames, camera, nominal, options)
   if not ok then fail(tostring(layout)) end
   if not layout then fail(report) end

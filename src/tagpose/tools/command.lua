@@ -33,7 +33,7 @@ end
 -- @tparam string name what its messages start with (`"replay"`: `replay: ...`)
 -- @tparam string usage its usage lines
 -- @treturn table `{name =, USAGE =, usage(msg), refuse(msg), fail(msg), help(),
---   args(argv), camera_path(opt, missing), main(run, argv)}` (functions, not methods)
+--   args(argv), inputs(opt, missing), main(run, argv)}` (functions, not methods)
 function M.new(name, usage)
   local C = { name = name, USAGE = usage }
 
@@ -92,18 +92,26 @@ function M.new(name, usage)
     return A
   end
 
-  --- The camera file's path: `opt.camera`, or camera.lua beside `opt.log` (a usage error,
-  -- `missing` formatted with its path, when there is none).
+  --- The corner log, opened, and the camera file's path, in this order: a log that cannot be
+  -- read is named as such (`fail`, `log: PATH: reason`), not as a missing camera file. The
+  -- camera file is `opt.camera`, or camera.lua beside the log (a usage error, `missing`
+  -- formatted with its path, when there is none).
   -- @tparam table opt `{log =, camera =}`
   -- @tparam string missing the message's format, `%s` the path
-  -- @treturn string
-  function C.camera_path(opt, missing)
-    if opt.camera then return opt.camera end
+  -- @treturn file the log, open for reading (the caller closes it)
+  -- @treturn string the camera file's path
+  function C.inputs(opt, missing)
+    local log, err = io.open(opt.log, "rb")
+    if not log then C.fail("log: " .. tostring(err)) end
+    if opt.camera then return log, opt.camera end
     local path = (opt.log:match("^(.*)/[^/]*$") or ".") .. "/camera.lua"
     local probe = io.open(path, "r")
-    if not probe then C.usage(missing:format(path)) end
+    if not probe then
+      log:close()
+      C.usage(missing:format(path))
+    end
     probe:close()
-    return path
+    return log, path
   end
 
   --- Run the command: `run(argv, open)` returns its status or raises a way out; what it

@@ -132,16 +132,16 @@ local function open_outputs(opt, open)
   return out
 end
 
--- the corner log's reader
-local function open_log(opt)
-  local reader, rerr = log.corner_reader(opt.log)
+-- the corner log's reader, of the log opened (`source`, a file) or of its path
+local function open_log(opt, source)
+  local reader, rerr = log.corner_reader(source)
   if not reader then fail(rerr:find(opt.log, 1, true) and rerr or opt.log .. ": " .. rerr) end
   return reader
 end
 
 -- the corner log, the figure's recorder, the logs to compare with
-local function open_inputs(opt, out)
-  local reader = open_log(opt)
+local function open_inputs(opt, out, log_file)
+  local reader = open_log(opt, log_file)
   if opt.svg then
     out.recorder = plot.recorder({ rotation = opt.rpy and "rpy" or "quaternion" })
     out.main_source = out.recorder:source("tagpose " .. (opt.method or "refined")
@@ -158,10 +158,7 @@ end
 local function run(arg, open)
   local opt = command.parse(arg)
   -- the log first: a log that cannot be read is named as such, not as a missing camera file
-  local probe, perr = io.open(opt.log, "r")
-  if not probe then fail("log: " .. tostring(perr)) end
-  probe:close()
-  local camera_path = command.command.camera_path(opt,
+  local log_file, camera_path = command.command.inputs(opt,
     "no camera file: %s does not exist; give --camera FILE")
   refuse_clashes(opt, camera_path)
   local files_out = open_outputs(opt, open)
@@ -174,13 +171,15 @@ local function run(arg, open)
   end
 
   local camera, source, sizes = load_camera(opt, camera_path)
-  local reader = open_inputs(opt, files_out)
+  local reader = open_inputs(opt, files_out, log_file)
   local times = clock.new(opt, reader.has_time, function(text)
     io.stderr:write("replay: warning: ", text, "\n")
   end)
-  local smoothed = opt.smooth and frames.forward(opt, camera, sizes, open_log(opt), times)
+  local smoothed = opt.smooth
+    and frames.forward(opt, camera, sizes, open_log(opt, opt.log), times)
   local replay = frames.new(opt, camera, sizes, files_out, times, smoothed or nil)
   frames.read(replay, reader)
+  log_file:close()
   for _, c in ipairs(files_out.compares) do c:finish() end
 
   -- the pose log first, so that a summary never claims a file that was not written
