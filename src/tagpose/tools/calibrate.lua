@@ -27,7 +27,6 @@
 
 local tagpose = require("tagpose")
 local compat = require("tagpose.core.compat")
-local calibration = require("tagpose.formats.calibration")
 local io_layout = require("tagpose.formats.layout")
 local output = require("tagpose.formats.output")
 local model = require("tagpose.layout.model")
@@ -190,7 +189,7 @@ local function run(argv, open)
     if not ok then fail("standard output: " .. tostring(err)) end
   end
   -- the camera and the nominal layout
-  local camera, cerr = calibration.read(camera_path)
+  local camera, cerr = tagpose.calibration.read(camera_path)
   if not camera then fail(cerr) end
   local nominal, lerr
   if opt.cube then

@@ -61,7 +61,6 @@
 -- @module tagpose.tools.replay
 
 local tagpose = require("tagpose")
-local calibration = require("tagpose.formats.calibration")
 local log = require("tagpose.tools.log")
 local plot = require("tagpose.tools.plot")
 local command = require("tagpose.tools.replay.command")
@@ -94,7 +93,7 @@ end
 
 -- the camera file, what it says, the tag sizes and the length unit
 local function load_camera(opt, camera_path)
-  local camera, info = calibration.read(camera_path)
+  local camera, info = tagpose.calibration.read(camera_path)
   if not camera then fail(info) end
   local problem = tagpose.camera.check(camera)
   if problem then fail(camera_path .. ": " .. problem) end
