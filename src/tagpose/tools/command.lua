@@ -11,6 +11,7 @@
 -- @module tagpose.tools.command
 
 local compat = require("tagpose.core.compat")
+local files = require("tagpose.tools.files")
 
 local huge = math.huge
 
@@ -105,12 +106,10 @@ function M.new(name, usage)
     if not log then C.fail("log: " .. tostring(err)) end
     if opt.camera then return log, opt.camera end
     local path = (opt.log:match("^(.*)/[^/]*$") or ".") .. "/camera.lua"
-    local probe = io.open(path, "r")
-    if not probe then
+    if not files.exists(path) then
       log:close()
       C.usage(missing:format(path))
     end
-    probe:close()
     return log, path
   end
 

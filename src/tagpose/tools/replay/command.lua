@@ -133,15 +133,6 @@ function M.parse(arg)
   return opt
 end
 
---- True when a file can be opened for reading.
--- @tparam string path
--- @treturn boolean
-function M.exists(path)
-  local f = io.open(path, "r")
-  if f then f:close() end
-  return f ~= nil
-end
-
 --- The last component of a path.
 -- @tparam string path
 -- @treturn string
