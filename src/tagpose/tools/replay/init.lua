@@ -91,7 +91,7 @@ local function refuse_clashes(opt, camera_path)
   if clash then command.refuse(clash) end
 end
 
--- the camera file, what it says, the tag sizes and the length unit
+-- the camera file, what it says, the tag sizes and the length unit; the replay's tracker
 local function load_camera(opt, camera_path)
   local camera, info = tagpose.calibration.read(camera_path)
   if not camera then fail(info) end
@@ -102,13 +102,14 @@ local function load_camera(opt, camera_path)
     usage(camera_path .. " has no tag_size; give --tag-size S")
   end
   -- (the tracker checks the sizes: a table it cannot use is the camera file's fault)
-  local ok, err = pcall(frames.tracker, opt, camera, sizes)
+  local ok, tracker = pcall(frames.tracker, opt, camera, sizes)
   if not ok then
-    fail(camera_path .. ": " .. tostring(err):gsub("^bad argument #%d to 'new' %((.*)%)$", "%1"))
+    fail(camera_path .. ": "
+      .. tostring(tracker):gsub("^bad argument #%d to 'new' %((.*)%)$", "%1"))
   end
   local unit = opt.unit or opt.tag_size_unit or (opt.tag_size and "tag-size units")
     or info.unit or "m"
-  return camera, { path = camera_path, info = info, unit = unit }, sizes
+  return camera, { path = camera_path, info = info, unit = unit }, sizes, tracker
 end
 
 -- the outputs, opened before anything is read (a file that cannot be written is found before
@@ -169,14 +170,14 @@ local function run(arg, open)
     if not ok then fail((out == io.stdout and "standard output: " or "") .. tostring(err)) end
   end
 
-  local camera, source, sizes = load_camera(opt, camera_path)
+  local camera, source, sizes, tracker = load_camera(opt, camera_path)
   local reader = open_inputs(opt, files_out, log_file)
   local times = clock.new(opt, reader.has_time, function(text)
     io.stderr:write("replay: warning: ", text, "\n")
   end)
   local smoothed = opt.smooth
     and frames.forward(opt, camera, sizes, open_log(opt, opt.log), times)
-  local replay = frames.new(opt, camera, sizes, files_out, times, smoothed or nil)
+  local replay = frames.new(opt, camera, sizes, tracker, files_out, times, smoothed or nil)
   frames.read(replay, reader)
   log_file:close()
   for _, c in ipairs(files_out.compares) do c:finish() end
