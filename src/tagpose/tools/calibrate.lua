@@ -242,6 +242,4 @@ function M.main(argv)
   return cmd.main(run, argv)
 end
 
-M.towards = towards
-
 return M
