@@ -1,5 +1,6 @@
 --- The command line of the workstation commands (tagpose-replay, tagpose-calibrate): their
--- ways out, their option readers, their `main` and the camera file beside a log.
+-- ways out, their option readers, their `main` and their inputs (the corner log, opened
+-- before the camera file beside it is looked for).
 --
 -- A command is made with `new(name, usage)`. Its ways out are raised as `EXIT` tables
 -- `{status =, text =}` (the text for standard error, each line after `NAME: `) and caught by

@@ -52,7 +52,8 @@
 -- status: 0 when the log was replayed (whatever its rows gave), 1 when a file cannot be read
 -- or written (standard output included), 2 on a usage error or an output that is an input.
 --
--- Its parts: `tagpose.tools.replay.command` (the command line and its exits),
+-- Its parts: `tagpose.tools.replay.command` (its options, on `tagpose.tools.command`: the
+-- ways out, option readers and inputs it shares with tagpose-calibrate),
 -- `tagpose.tools.replay.frames` (rows fed to the tracker, written and counted a frame at a
 -- time), `tagpose.tools.replay.clock` (the frames' times), `tagpose.tools.replay.slots` (the
 -- plot's lines), `tagpose.tools.replay.compare` (the logs compared with),
