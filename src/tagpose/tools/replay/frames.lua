@@ -18,7 +18,7 @@
 --       tracker =, clock =,  -- the tracker, the frames' times (tagpose.tools.replay.clock)
 --       writer =, recorder =, main_source =, compares = {...},  -- where rows go
 --       rows = n, solved = n, failures = tally, malformed = tally,
---       errors = histogram, iterations = {[n] = count},
+--       errors = histogram, residuals = histogram, iterations = {[n] = count},
 --       tags = {[id] = true}, ntags = n, more_tags = boolean,  -- at most MAX_IDS ids
 --       first_frame =, last_frame =,
 --       repeated = {rows =, max =, tags =, ntags =, first =},  -- rows sharing (frame, tag)
@@ -81,7 +81,7 @@ function M.new(opt, camera, sizes, tracker, out, clock, smoothed)
     tracker = tracker, clock = clock, smoothed = smoothed, switched = 0, fed = 0,
     slots = out.recorder and slots_model.new(tracker.max_gap) or nil,
     rows = 0, solved = 0, failures = stats.tally(), malformed = stats.tally(),
-    errors = stats.histogram(), iterations = {}, tags = {},
+    errors = stats.histogram(), residuals = stats.histogram(), iterations = {}, tags = {},
     ntags = 0, more_tags = false, first_frame = nil, last_frame = nil,
     repeated = { rows = 0, max = 1, tags = {}, ntags = 0, first = nil },
     order = { rows = 0, first = nil }, options = { method = opt.method, sigma = opt.sigma },
@@ -92,14 +92,12 @@ end
 --- The noise σ (px) the log's residuals give: from the median of the written poses' squared
 -- residuals (χ² with the 2 degrees of freedom of a tag's 8 coordinates and 6 pose
 -- parameters), robust to the odd bad detection. (The pose written, not the better fit of the
--- two: on an ambiguous far tag the smaller of two such sums is biased low.) A pose's squared
--- residual sum is 4·error² (error the rms over its 4 corners), which grows with the error: its
--- median is 4·(the errors' median), from the errors' histogram.
+-- two: on an ambiguous far tag the smaller of two such sums is biased low.)
 -- @tparam table run the replay's record
 -- @treturn number|nil nil when no row was solved
 function M.sigma(run)
-  local median = stats.quantile(run.errors, 0.5)
-  return median and math.sqrt(4 * median * median / LN4) or nil
+  local median = stats.quantile(run.residuals, 0.5)
+  return median and math.sqrt(median / LN4) or nil
 end
 
 -- count the rows of a tag that share their frame with another of the tag (among the first
@@ -183,12 +181,13 @@ local function solve_group(run, group, time)
   run.fed = fed + #group
 end
 
--- a solved row into the summary's counts: its error and iterations
+-- a solved row into the summary's counts: its error, iterations and squared residuals
 local function count_solved(run, pose)
   run.solved = run.solved + 1
   add(run.errors, pose.error)
   local it = pose.iterations
   run.iterations[it] = (run.iterations[it] or 0) + 1
+  add(run.residuals, 4 * pose.error * pose.error)
 end
 
 -- the rows of a group in the log's order: to the pose log, the summary's counts, the figure;
