@@ -25,6 +25,7 @@ build = {
   type = "builtin",
   modules = {
     ["tagpose.tools.calibrate"] = "src/tagpose/tools/calibrate.lua",
+    ["tagpose.tools.command"] = "src/tagpose/tools/command.lua",
     ["tagpose.tools.csv"] = "src/tagpose/tools/csv.lua",
     ["tagpose.tools.files"] = "src/tagpose/tools/files.lua",
     ["tagpose.tools.log"] = "src/tagpose/tools/log.lua",

@@ -81,4 +81,18 @@ describe("bin/tagpose-calibrate", function()
     assert.equal(0, status)
     assert.matches("^usage: tagpose%-calibrate", text)
   end)
+
+  it("names a missing log before it looks for the camera file beside it", function()
+    -- no --camera: camera.lua beside a log that does not exist is not what is wrong
+    local text, status = run.script("bin/tagpose-calibrate", "/nonexistent/log.csv", "--cube",
+      "0.024,0.055")
+    assert.equal(1, status, text)
+    assert.truthy(text:find("calibrate: log: /nonexistent/log.csv", 1, true), text)
+    assert.falsy(text:find("camera", 1, true), text)
+    -- with --camera, the same
+    text, status = run.script("bin/tagpose-calibrate", "/nonexistent/log.csv", "--cube",
+      "0.024,0.055", "--camera", dir .. "/camera.lua")
+    assert.equal(1, status, text)
+    assert.truthy(text:find("calibrate: log: /nonexistent/log.csv", 1, true), text)
+  end)
 end)

@@ -27,12 +27,12 @@
 
 local tagpose = require("tagpose")
 local compat = require("tagpose.core.compat")
-local calibration = require("tagpose.formats.calibration")
 local io_layout = require("tagpose.formats.layout")
 local output = require("tagpose.formats.output")
 local model = require("tagpose.layout.model")
 local log = require("tagpose.tools.log")
 local files = require("tagpose.tools.files")
+local frame = require("tagpose.tools.command")
 
 local deg, abs = math.deg, math.abs
 local id_text = io_layout.id_text
@@ -41,21 +41,8 @@ local USAGE = "usage: tagpose-calibrate LOG.csv (--layout NOMINAL | --cube TAG_S
   .. "  [--camera CAMERA] [--out CALIBRATED.lua|.yaml|.csv] [--bundle NAME] [--unit NAME]\n"
   .. "  [--reference ID] [--gauge planes|corners] [--robust K] [--max-iterations N]\n"
 
-local EXIT = {}
-
-local function usage(msg)
-  error(setmetatable({ status = 2, text = (msg and "calibrate: " .. msg .. "\n" or "") .. USAGE },
-    EXIT), 0)
-end
-
-local function fail(msg)
-  error(setmetatable({ status = 1, text = "calibrate: " .. msg .. "\n" }, EXIT), 0)
-end
-
--- status 2 without the usage: an output that is one of the inputs
-local function refuse(msg)
-  error(setmetatable({ status = 2, text = "calibrate: " .. msg .. "\n" }, EXIT), 0)
-end
+local cmd = frame.new("calibrate", USAGE)
+local usage, fail, refuse = cmd.usage, cmd.fail, cmd.refuse
 
 local M = {}
 
@@ -64,24 +51,11 @@ local MM = { m = 1000, cm = 10, mm = 1 }
 -- The command line into a table.
 local function parse(argv)
   local opt, options = {}, {}
-  local i = 1
-  local function value(name)
-    i = i + 1
-    local v = argv[i]
-    if v == nil or (v:sub(1, 2) == "--" and #v > 2) then usage(name .. " needs a value") end
-    return v
-  end
-  local function number(name, check, what)
-    local v = value(name)
-    local x = compat.decimal(v)
-    if not (x and check(x)) then usage(name .. ": " .. what .. " expected, got " .. v) end
-    return x
-  end
-  while argv[i] do
-    local a = argv[i]
+  local args = cmd.args(argv)
+  local value, number = args.value, args.number
+  for a in args.next do
     if a == "--help" or a == "-h" then
-      io.stdout:write(USAGE)
-      error(setmetatable({ status = 0, text = "" }, EXIT), 0)
+      cmd.help()
     elseif a == "--layout" then
       opt.layout = value(a)
     elseif a == "--cube" then
@@ -108,8 +82,7 @@ local function parse(argv)
         usage("--gauge: planes or corners expected, got " .. options.gauge)
       end
     elseif a == "--robust" then
-      options.robust = number(a, function(x) return x > 0 and x < math.huge end,
-        "positive number")
+      options.robust = args.positive(a)
     elseif a == "--max-iterations" then
       options.max_iterations = number(a, function(x) return x >= 1 and x == math.floor(x)
         and x < math.huge end, "positive integer")
@@ -120,7 +93,6 @@ local function parse(argv)
     else
       usage("one corner log expected, got " .. opt.log .. " and " .. a)
     end
-    i = i + 1
   end
   if not opt.log then usage() end
   if not opt.layout and not opt.cube then usage("give the nominal layout: --layout or --cube") end
@@ -140,11 +112,12 @@ local function towards(s)
   return text
 end
 
--- The corner log read into frames of detections `{id =, corners =}` (rows of one frame
--- number, in the order the numbers first come), keeping nothing else of a row; the number of
--- rows, and the malformed rows (the first 10 kept, with their count).
-local function read_frames(path)
-  local reader, err = log.corner_reader(path)
+-- The corner log (`file`, opened from `path`, closed here) read into frames of detections
+-- `{id =, corners =}` (rows of one frame number, in the order the numbers first come), keeping
+-- nothing else of a row; the number of rows, and the malformed rows (the first 10 kept, with
+-- their count).
+local function read_frames(path, file)
+  local reader, err = log.corner_reader(file)
   if not reader then fail(err:find(path, 1, true) and err or path .. ": " .. err) end
   local frames, index, nrows, problems = {}, {}, 0, { n = 0 }
   while true do
@@ -166,6 +139,7 @@ local function read_frames(path)
     end
   end
   reader:close()
+  file:close()
   return frames, nrows, problems
 end
 
@@ -187,16 +161,6 @@ local function tag_lines(say, report, scale, unit)
   end
 end
 
--- The camera file's path: --camera, or camera.lua beside the log.
-local function camera_path_of(opt)
-  if opt.camera then return opt.camera end
-  local path = (opt.log:match("^(.*)/[^/]*$") or ".") .. "/camera.lua"
-  local probe = io.open(path, "r")
-  if not probe then usage("no camera file " .. path .. "; give --camera") end
-  probe:close()
-  return path
-end
-
 -- The calibrated layout's file, opened before anything is read (its name refused when it is
 -- one of the inputs, its format and its directory checked): nil without --out.
 local function open_output(opt, camera_path, open)
@@ -216,7 +180,8 @@ end
 
 local function run(argv, open)
   local opt, options = parse(argv)
-  local camera_path = camera_path_of(opt)
+  -- the log first: a log that cannot be read is named as such, not as a missing camera file
+  local log_file, camera_path = cmd.inputs(opt, "no camera file %s; give --camera")
   local out_file = open_output(opt, camera_path, open)
   local out = io.stdout
   local function say(fmt, ...)
@@ -224,7 +189,7 @@ local function run(argv, open)
     if not ok then fail("standard output: " .. tostring(err)) end
   end
   -- the camera and the nominal layout
-  local camera, cerr = calibration.read(camera_path)
+  local camera, cerr = tagpose.calibration.read(camera_path)
   if not camera then fail(cerr) end
   local nominal, lerr
   if opt.cube then
@@ -234,7 +199,7 @@ local function run(argv, open)
     if not nominal then fail(lerr) end
   end
   -- the log
-  local frames, nrows, problems = read_frames(opt.log)
+  local frames, nrows, problems = read_frames(opt.log, log_file)
   local ok, layout, report = pcall(tagpose.layout.calibrate, frames, camera, nominal, options)
   if not ok then fail(tostring(layout)) end
   if not layout then fail(report) end
@@ -274,22 +239,7 @@ end
 --   output included) or the log cannot calibrate the layout, 2 a usage error (an --out that is
 --   one of the inputs included)
 function M.main(argv)
-  local open = {}
-  local ok, status = pcall(run, argv, open)
-  for i = #open, 1, -1 do open[i]:abort() end
-  if ok then status = setmetatable({ status = status, text = "" }, EXIT) end
-  if getmetatable(status) ~= EXIT then error(status, 0) end
-  if status.status ~= 0 then
-    io.stderr:write(status.text)
-    return status.status
-  end
-  -- what was written to standard output (the summary, --help) reached it, or status 1
-  local flushed, err = io.stdout:flush()
-  if flushed then return 0 end
-  io.stderr:write("calibrate: standard output: " .. tostring(err) .. "\n")
-  return 1
+  return cmd.main(run, argv)
 end
-
-M.towards = towards
 
 return M

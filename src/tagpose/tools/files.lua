@@ -98,11 +98,16 @@ local function same_bytes(a, b)
   return same
 end
 
-local function exists(path)
+--- True when a file can be opened for reading (the one "does this file exist" of the tools).
+-- @tparam string path
+-- @treturn boolean
+function M.exists(path)
   local f = io.open(path, "rb")
   if f then f:close() end
   return f ~= nil
 end
+
+local exists = M.exists
 
 --- The first output that is one of the inputs, or another output, and why: `nil` when there
 -- is none.

@@ -31,7 +31,7 @@
 -- @module tagpose.tools.log
 
 local compat = require("tagpose.core.compat")
-local calibration = require("tagpose.formats.calibration")
+local tagpose = require("tagpose")
 local csv_table = require("tagpose.tools.csv")
 local output = require("tagpose.formats.output")
 local model = require("tagpose.layout.model")
@@ -444,7 +444,7 @@ end
 -- @treturn table what else the file said (`tag_size`, `block_size`, `width`, `height`, ...)
 -- @return nil, string when the file cannot be read or is refused
 function M.read_camera(path)
-  return calibration.read(path)
+  return tagpose.calibration.read(path)
 end
 
 return M

@@ -14,6 +14,8 @@
 -- * the time going back: the tracker ends every track (as a user's loop over it does).
 -- @module tagpose.tools.replay.clock
 
+local stats = require("tagpose.tools.replay.stats")
+
 local floor = math.floor
 
 local M = {}
@@ -39,9 +41,9 @@ function M.time_of(clock, group)
   return first.frame / clock.fps
 end
 
+-- a number in a warning: as the summary writes it, to 4 digits
 local function number(v)
-  if v == floor(v) and v > -1e15 and v < 1e15 then return ("%.0f"):format(v) end
-  return ("%.4g"):format(v)
+  return stats.number(v, 4)
 end
 
 -- the step between frames as the log gives it, and what it looks like

@@ -1,12 +1,13 @@
 --- tagpose-replay's command line: its options, its paths and its ways out.
 --
--- The ways out of the command are raised as `EXIT` tables `{status =, text =}` (the text for
--- standard error) and caught by `tagpose.tools.replay.main`: `usage` (status 2, with the
--- usage), `refuse` (status 2: an output that is an input), `fail` (status 1: a file cannot be
--- read or written), and `--help` (status 0).
+-- The ways out are those of `tagpose.tools.command` (its `EXIT` tables, caught by
+-- `tagpose.tools.replay.main`): `usage` (status 2, with the usage), `refuse` (status 2: an
+-- output that is an input), `fail` (status 1: a file cannot be read or written), and
+-- `--help` (status 0).
 -- @module tagpose.tools.replay.command
 
 local compat = require("tagpose.core.compat")
+local frame = require("tagpose.tools.command")
 
 local huge = math.huge
 
@@ -25,30 +26,28 @@ local USAGE = M.USAGE
 
 local UNITS = { m = true, cm = true, mm = true, ["in"] = true, ft = true }
 
---- The metatable of the ways out.
-M.EXIT = {}
+--- The command's frame (`tagpose.tools.command.new`): its ways out, its option readers, its
+-- `main`.
+M.command = frame.new("replay", USAGE)
 
-local EXIT = M.EXIT
+--- The metatable of the ways out.
+M.EXIT = frame.EXIT
 
 --- Leave with status 2: a usage error (`msg`, then the usage).
+-- @function usage
 -- @tparam[opt] string msg
-function M.usage(msg)
-  error(setmetatable({ status = 2, text = (msg and "replay: " .. msg .. "\n" or "") .. USAGE },
-    EXIT), 0)
-end
+M.usage = M.command.usage
 
 --- Leave with status 2 without the usage: a command line that names one file twice (an
 -- output that is one of the inputs).
+-- @function refuse
 -- @tparam string msg
-function M.refuse(msg)
-  error(setmetatable({ status = 2, text = "replay: " .. msg .. "\n" }, EXIT), 0)
-end
+M.refuse = M.command.refuse
 
 --- Leave with status 1: a file cannot be read or written.
+-- @function fail
 -- @tparam string msg
-function M.fail(msg)
-  error(setmetatable({ status = 1, text = "replay: " .. msg .. "\n" }, EXIT), 0)
-end
+M.fail = M.command.fail
 
 local usage = M.usage
 
@@ -62,13 +61,6 @@ local function tag_size(opt, v)
       .. " got " .. v)
   end
   opt.tag_size_unit = unit ~= "" and unit or nil
-end
-
--- a positive finite number of an option, or a usage error
-local function positive(name, v)
-  local x = compat.decimal(v)
-  if not (x and x > 0 and x < huge) then usage(name .. ": positive number expected, got " .. v) end
-  return x
 end
 
 -- --max-gap T(s|ms) into opt: seconds, as the tracker's; a bare number, which counted frames
@@ -97,18 +89,11 @@ local VALUE = { ["--camera"] = "camera", ["--out"] = "out", ["--svg"] = "svg",
 -- @raise an `EXIT` for `--help` and for a usage error
 function M.parse(arg)
   local opt = { compare = {}, fps = M.FPS }
-  local i, n = 1, #arg
-  local function value(name)
-    i = i + 1
-    local v = arg[i]
-    if v == nil or (v:sub(1, 2) == "--" and #v > 2) then usage(name .. " needs a value") end
-    return v
-  end
-  while i <= n do
-    local a = arg[i]
+  local args = M.command.args(arg)
+  local value = args.value
+  for a in args.next do
     if a == "--help" or a == "-h" then
-      io.stdout:write(USAGE)
-      error(setmetatable({ status = 0, text = "" }, EXIT), 0)
+      M.command.help()
     elseif VALUE[a] then
       opt[VALUE[a]] = value(a)
     elseif a == "--tag-size" then
@@ -126,16 +111,15 @@ function M.parse(arg)
       max_gap(opt, value(a))
       opt.track = true
     elseif a == "--sigma" then
-      opt.sigma = positive(a, value(a))
+      opt.sigma = args.positive(a)
     elseif a == "--fps" then
-      opt.fps, opt.fps_given = positive(a, value(a)), true
+      opt.fps, opt.fps_given = args.positive(a), true
     elseif a == "--rpy" then
       opt.rpy = true
     elseif a == "--compare" then
       opt.compare[#opt.compare + 1] = value(a)
-      while arg[i + 1] and arg[i + 1]:sub(1, 2) ~= "--" do
-        i = i + 1
-        opt.compare[#opt.compare + 1] = arg[i]
+      while args.peek() and args.peek():sub(1, 2) ~= "--" do
+        opt.compare[#opt.compare + 1] = args.next()
       end
     elseif a:sub(1, 2) == "--" then
       usage("unknown option " .. a)
@@ -144,19 +128,9 @@ function M.parse(arg)
     else
       usage("one corner log expected, got " .. opt.log .. " and " .. a)
     end
-    i = i + 1
   end
   if not opt.log then usage() end
   return opt
-end
-
---- True when a file can be opened for reading.
--- @tparam string path
--- @treturn boolean
-function M.exists(path)
-  local f = io.open(path, "r")
-  if f then f:close() end
-  return f ~= nil
 end
 
 --- The last component of a path.

@@ -63,7 +63,7 @@ function M.open(path, recorder)
     problems = stats.tally(), dt = stats.histogram(), dr = stats.histogram(), matched = 0,
     apart = 0,
     frame = nil, rows = {}, last = nil, out_of_order = 0, first_out_of_order = nil,
-    unmatched_frame = 0, lookahead = nil, done = false }, Compare)
+    lookahead = nil, done = false }, Compare)
   return self
 end
 
@@ -130,7 +130,6 @@ function Compare:take(frame)
     if #rows < MAX_GROUP then
       rows[#rows + 1] = e
     else
-      self.unmatched_frame = self.unmatched_frame + 1
       self:draw(e)
     end
   end

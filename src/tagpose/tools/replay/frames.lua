@@ -69,13 +69,13 @@ end
 -- @tparam table opt the options of `tagpose.tools.replay.command.parse`
 -- @tparam table camera
 -- @tparam number|table sizes the tag size, or `{[id] = size, default = size}`
+-- @tparam table tracker the replay's tracker (`tracker(opt, camera, sizes)`)
 -- @tparam table out `{writer =, recorder =, main_source =, compares =}` (each optional but
 --   `compares`)
 -- @tparam table clock the frames' times (`tagpose.tools.replay.clock.new`)
 -- @tparam[opt] table smoothed `{choice =, confidence =}` of `forward`
 -- @treturn table
-function M.new(opt, camera, sizes, out, clock, smoothed)
-  local tracker = M.tracker(opt, camera, sizes)
+function M.new(opt, camera, sizes, tracker, out, clock, smoothed)
   return { opt = opt, camera = camera, sizes = sizes, writer = out.writer,
     recorder = out.recorder, main_source = out.main_source, compares = out.compares,
     tracker = tracker, clock = clock, smoothed = smoothed, switched = 0, fed = 0,

@@ -52,7 +52,8 @@
 -- status: 0 when the log was replayed (whatever its rows gave), 1 when a file cannot be read
 -- or written (standard output included), 2 on a usage error or an output that is an input.
 --
--- Its parts: `tagpose.tools.replay.command` (the command line and its exits),
+-- Its parts: `tagpose.tools.replay.command` (its options, on `tagpose.tools.command`: the
+-- ways out, option readers and inputs it shares with tagpose-calibrate),
 -- `tagpose.tools.replay.frames` (rows fed to the tracker, written and counted a frame at a
 -- time), `tagpose.tools.replay.clock` (the frames' times), `tagpose.tools.replay.slots` (the
 -- plot's lines), `tagpose.tools.replay.compare` (the logs compared with),
@@ -61,7 +62,6 @@
 -- @module tagpose.tools.replay
 
 local tagpose = require("tagpose")
-local calibration = require("tagpose.formats.calibration")
 local log = require("tagpose.tools.log")
 local plot = require("tagpose.tools.plot")
 local command = require("tagpose.tools.replay.command")
@@ -75,16 +75,6 @@ local output = require("tagpose.formats.output")
 local usage, fail = command.usage, command.fail
 
 local M = {}
-
--- the camera file's path: --camera, or camera.lua beside the log
-local function camera_path_of(opt)
-  if opt.camera then return opt.camera end
-  local path = (opt.log:match("^(.*)/[^/]*$") or ".") .. "/camera.lua"
-  if not command.exists(path) then
-    usage("no camera file: " .. path .. " does not exist; give --camera FILE")
-  end
-  return path
-end
 
 -- refuse an output that is one of the inputs (or another output), before reading anything
 local function refuse_clashes(opt, camera_path)
@@ -102,9 +92,9 @@ local function refuse_clashes(opt, camera_path)
   if clash then command.refuse(clash) end
 end
 
--- the camera file, what it says, the tag sizes and the length unit
+-- the camera file, what it says, the tag sizes and the length unit; the replay's tracker
 local function load_camera(opt, camera_path)
-  local camera, info = calibration.read(camera_path)
+  local camera, info = tagpose.calibration.read(camera_path)
   if not camera then fail(info) end
   local problem = tagpose.camera.check(camera)
   if problem then fail(camera_path .. ": " .. problem) end
@@ -113,13 +103,14 @@ local function load_camera(opt, camera_path)
     usage(camera_path .. " has no tag_size; give --tag-size S")
   end
   -- (the tracker checks the sizes: a table it cannot use is the camera file's fault)
-  local ok, err = pcall(frames.tracker, opt, camera, sizes)
+  local ok, tracker = pcall(frames.tracker, opt, camera, sizes)
   if not ok then
-    fail(camera_path .. ": " .. tostring(err):gsub("^bad argument #%d to 'new' %((.*)%)$", "%1"))
+    fail(camera_path .. ": "
+      .. tostring(tracker):gsub("^bad argument #%d to 'new' %((.*)%)$", "%1"))
   end
   local unit = opt.unit or opt.tag_size_unit or (opt.tag_size and "tag-size units")
     or info.unit or "m"
-  return camera, { path = camera_path, info = info, unit = unit }, sizes
+  return camera, { path = camera_path, info = info, unit = unit }, sizes, tracker
 end
 
 -- the outputs, opened before anything is read (a file that cannot be written is found before
@@ -142,16 +133,16 @@ local function open_outputs(opt, open)
   return out
 end
 
--- the corner log's reader
-local function open_log(opt)
-  local reader, rerr = log.corner_reader(opt.log)
+-- the corner log's reader, of the log opened (`source`, a file) or of its path
+local function open_log(opt, source)
+  local reader, rerr = log.corner_reader(source)
   if not reader then fail(rerr:find(opt.log, 1, true) and rerr or opt.log .. ": " .. rerr) end
   return reader
 end
 
 -- the corner log, the figure's recorder, the logs to compare with
-local function open_inputs(opt, out)
-  local reader = open_log(opt)
+local function open_inputs(opt, out, log_file)
+  local reader = open_log(opt, log_file)
   if opt.svg then
     out.recorder = plot.recorder({ rotation = opt.rpy and "rpy" or "quaternion" })
     out.main_source = out.recorder:source("tagpose " .. (opt.method or "refined")
@@ -168,10 +159,8 @@ end
 local function run(arg, open)
   local opt = command.parse(arg)
   -- the log first: a log that cannot be read is named as such, not as a missing camera file
-  local probe, perr = io.open(opt.log, "r")
-  if not probe then fail("log: " .. tostring(perr)) end
-  probe:close()
-  local camera_path = camera_path_of(opt)
+  local log_file, camera_path = command.command.inputs(opt,
+    "no camera file: %s does not exist; give --camera FILE")
   refuse_clashes(opt, camera_path)
   local files_out = open_outputs(opt, open)
 
@@ -182,14 +171,16 @@ local function run(arg, open)
     if not ok then fail((out == io.stdout and "standard output: " or "") .. tostring(err)) end
   end
 
-  local camera, source, sizes = load_camera(opt, camera_path)
-  local reader = open_inputs(opt, files_out)
+  local camera, source, sizes, tracker = load_camera(opt, camera_path)
+  local reader = open_inputs(opt, files_out, log_file)
   local times = clock.new(opt, reader.has_time, function(text)
     io.stderr:write("replay: warning: ", text, "\n")
   end)
-  local smoothed = opt.smooth and frames.forward(opt, camera, sizes, open_log(opt), times)
-  local replay = frames.new(opt, camera, sizes, files_out, times, smoothed or nil)
+  local smoothed = opt.smooth
+    and frames.forward(opt, camera, sizes, open_log(opt, opt.log), times)
+  local replay = frames.new(opt, camera, sizes, tracker, files_out, times, smoothed or nil)
   frames.read(replay, reader)
+  log_file:close()
   for _, c in ipairs(files_out.compares) do c:finish() end
 
   -- the pose log first, so that a summary never claims a file that was not written
@@ -219,20 +210,7 @@ end
 -- @treturn int the exit status: 0 replayed, 1 a file could not be read or written (standard
 --   output included), 2 a usage error (an output that is one of the inputs included)
 function M.main(argv)
-  local open = {}
-  local ok, status = pcall(run, argv, open)
-  for i = #open, 1, -1 do open[i]:abort() end
-  if ok then status = setmetatable({ status = status, text = "" }, command.EXIT) end
-  if getmetatable(status) ~= command.EXIT then error(status, 0) end
-  if status.status ~= 0 then
-    io.stderr:write(status.text)
-    return status.status
-  end
-  -- what was written to standard output (the summary, --help) reached it, or status 1
-  local flushed, err = io.stdout:flush()
-  if flushed then return 0 end
-  io.stderr:write("replay: standard output: " .. tostring(err) .. "\n")
-  return 1
+  return command.command.main(run, argv)
 end
 
 return M

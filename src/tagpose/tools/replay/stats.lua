@@ -15,12 +15,14 @@ M.LISTED = 20
 --- Most distinct reasons counted.
 M.REASONS = 50
 
---- A number as the summary writes it: whole numbers without a point, others to 6 digits.
+--- A number as the summary writes it: whole numbers without a point, others to 6
+-- significant digits (or `digits`).
 -- @tparam number v
+-- @tparam[opt=6] int digits
 -- @treturn string
-function M.number(v)
+function M.number(v, digits)
   if v == floor(v) and v > -1e15 and v < 1e15 then return ("%.0f"):format(v) end
-  return ("%.6g"):format(v)
+  return (digits and "%." .. digits .. "g" or "%.6g"):format(v)
 end
 
 -- quantiles in bounded memory: counts in bins of 1/1000 of a decade (0.23 %) from 1e-12 to
