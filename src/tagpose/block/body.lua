@@ -133,6 +133,42 @@ local function standard(block_size, size)
   return standard_places
 end
 
+-- A symmetric layout's orbit, kept by its layout table (weakly: forgotten with the table), as
+-- `{tags = the read tags, block_size =, places =, size =}`: reused only while the table's tags
+-- read back the same (a layout changed between calls gets its orbit again).
+local orbits = setmetatable({}, { __mode = "k" })
+
+-- True when two read layouts have the same ids and each tag the same size, rotation and centre.
+local function same_tags(a, b)
+  local ia, ib = a.ids, b.ids
+  if #ia ~= #ib then return false end
+  for k = 1, #ia do
+    local id = ia[k]
+    if ib[k] ~= id then return false end
+    local s, t = a[id], b[id]
+    if s.size ~= t.size or s.x ~= t.x or s.y ~= t.y or s.z ~= t.z then return false end
+    local rs, rt = s.r, t.r
+    for i = 1, 9 do
+      if rs[i] ~= rt[i] then return false end
+    end
+  end
+  return true
+end
+
+-- `orbit(tags, block_size)` for the layout table `given`, from the cache when its tags and the
+-- block size are those of the last call that gave it.
+local function orbit_of(given, tags, block_size)
+  local kept = orbits[given]
+  if kept and kept.block_size == block_size and same_tags(kept.tags, tags) then
+    return kept.places, kept.size
+  end
+  local places, size = orbit(tags, block_size)
+  if places then
+    orbits[given] = { tags = tags, block_size = block_size, places = places, size = size }
+  end
+  return places, size
+end
+
 -- The face a read tag lies on: the face's name, the tag centre's distance from the block's
 -- centre along the face's normal, its distance from that line, and the angle between the tag's
 -- z axis and the face's inward normal.
@@ -234,7 +270,7 @@ local function of_layout(given, tag_size, block_size, source)
   if not size then return nil, n, problem end
   local body = { symmetric = symmetric or false, block_size = size, source = source }
   if symmetric then
-    body.places, body.sizes = orbit(tags, size)
+    body.places, body.sizes = orbit_of(given, tags, size)
     if not body.places then return nil, 5, body.sizes end
   else
     body.places = tags
