@@ -32,7 +32,7 @@ local model = require("tagpose.layout.model")
 local layout = require("tagpose.layout")
 
 local sqrt, abs, acos, deg, rad = math.sqrt, math.abs, math.acos, math.deg, math.rad
-local is_finite, describe = compat.is_finite, args.describe
+local is_finite, describe, size_of = compat.is_finite, args.describe, args.size_of
 local ROTATIONS = cube.ROTATIONS
 
 -- The squared distance of a place p from (x, y, z).
@@ -59,13 +59,6 @@ M.FACE_DISTANCE = 0.02
 M.SYMMETRY_TOLERANCE = 1e-3
 --- `tag_size` agrees with a layout's size to within this relative difference.
 M.SIZE_TOLERANCE = 1e-6
-
-local function size_of(sizes, id)
-  if type(sizes) ~= "table" then return sizes end
-  local size = sizes[id]
-  if size == nil then size = sizes.default end
-  return size
-end
 
 -- Every size of `sizes` (a size, or sizes by id) must fit on a face of the block, and be in the
 -- block size's unit; or what is wrong. `name` names them in the message.

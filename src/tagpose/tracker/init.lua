@@ -40,7 +40,7 @@ local smooth = require("tagpose.tracker.smooth")
 
 local sqrt = math.sqrt
 local centre_and_side = associate.centre_and_side
-local is_finite, describe = compat.is_finite, args.describe
+local is_finite, describe, size_of = compat.is_finite, args.describe, args.size_of
 
 local M = {}
 
@@ -67,13 +67,6 @@ local function raise(n, fname, message)
   args.raise(n, fname, message, 3)
 end
 
--- the tag size of an id: a number, or nil
-local function size_of(sizes, id)
-  if type(sizes) == "number" then return sizes end
-  local s = sizes[id]
-  if s == nil then s = sizes.default end
-  return s
-end
 
 -- What is wrong with a tag_size argument, or nil.
 local function check_sizes(tag_size)
