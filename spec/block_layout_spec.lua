@@ -80,6 +80,44 @@ describe("tagpose.block with options.layout", function()
     end
   end)
 
+  it("follows a symmetric layout changed between calls, as a layout never seen before", function()
+    local rng = geometry.rng(16)
+    local layout = tagpose.layout.cube(TAG, BLOCK)
+    layout.symmetric = true
+    local dets = copies(layout, camera, rng, 2, 0.3)
+    local function copy(t)
+      if type(t) ~= "table" then return t end
+      local out = {}
+      for k, v in pairs(t) do out[k] = copy(v) end
+      return out
+    end
+    -- the layout table changed in place solves as a fresh copy of it does
+    local function solve(what)
+      local a = assert(tagpose.block.solve(dets, camera, nil, nil, { layout = layout }))
+      local b = assert(tagpose.block.solve(dets, camera, nil, nil, { layout = copy(layout) }))
+      assert.same(b, a, what)
+      return a
+    end
+    local given = solve("as given")
+    assert.equal(2, #given)
+    -- every tag smaller: the orbit's size
+    for _, t in pairs(layout.tags) do t.size = 0.9 * TAG end
+    local smaller = solve("smaller tags")
+    assert.is_true(smaller[1].position.z < given[1].position.z)
+    -- one tag left, 2 mm off its face's centre: the orbit's places
+    for id = 1, 5 do layout.tags[id] = nil end
+    layout.tags[0].position.y = 0.002
+    local off = solve("one tag off centre")
+    assert.are_not.same(smaller[1].position, off[1].position)
+    -- a centred tag beside it: not symmetric any more
+    layout.tags[2] = copy(tagpose.layout.cube(0.9 * TAG, BLOCK).tags[2])
+    assert.equal("bad argument #5 to 'solve' (options.layout: not symmetric: the cube's "
+      .. "rotations put tags[0] and tags[2] in one place 0.002 apart (leave out symmetric = "
+      .. "true when the ids tell the tags apart))", assertions.raised(function()
+        tagpose.block.solve(dets, camera, nil, nil, { layout = layout })
+      end, "block_layout_spec.lua"))
+  end)
+
   it("skips a detection whose id is not in the layout, and says so", function()
     local rng = geometry.rng(14)
     local _, truth = blocks_support.glued_cube(rng)

@@ -32,7 +32,7 @@ local model = require("tagpose.layout.model")
 local layout = require("tagpose.layout")
 
 local sqrt, abs, acos, deg, rad = math.sqrt, math.abs, math.acos, math.deg, math.rad
-local is_finite, describe = compat.is_finite, args.describe
+local is_finite, describe, size_of = compat.is_finite, args.describe, args.size_of
 local ROTATIONS = cube.ROTATIONS
 
 -- The squared distance of a place p from (x, y, z).
@@ -59,13 +59,6 @@ M.FACE_DISTANCE = 0.02
 M.SYMMETRY_TOLERANCE = 1e-3
 --- `tag_size` agrees with a layout's size to within this relative difference.
 M.SIZE_TOLERANCE = 1e-6
-
-local function size_of(sizes, id)
-  if type(sizes) ~= "table" then return sizes end
-  local size = sizes[id]
-  if size == nil then size = sizes.default end
-  return size
-end
 
 -- Every size of `sizes` (a size, or sizes by id) must fit on a face of the block, and be in the
 -- block size's unit; or what is wrong. `name` names them in the message.
@@ -131,6 +124,42 @@ local function standard(block_size, size)
     standard_size = block_size
   end
   return standard_places
+end
+
+-- A symmetric layout's orbit, kept by its layout table (weakly: forgotten with the table), as
+-- `{tags = the read tags, block_size =, places =, size =}`: reused only while the table's tags
+-- read back the same (a layout changed between calls gets its orbit again).
+local orbits = setmetatable({}, { __mode = "k" })
+
+-- True when two read layouts have the same ids and each tag the same size, rotation and centre.
+local function same_tags(a, b)
+  local ia, ib = a.ids, b.ids
+  if #ia ~= #ib then return false end
+  for k = 1, #ia do
+    local id = ia[k]
+    if ib[k] ~= id then return false end
+    local s, t = a[id], b[id]
+    if s.size ~= t.size or s.x ~= t.x or s.y ~= t.y or s.z ~= t.z then return false end
+    local rs, rt = s.r, t.r
+    for i = 1, 9 do
+      if rs[i] ~= rt[i] then return false end
+    end
+  end
+  return true
+end
+
+-- `orbit(tags, block_size)` for the layout table `given`, from the cache when its tags and the
+-- block size are those of the last call that gave it.
+local function orbit_of(given, tags, block_size)
+  local kept = orbits[given]
+  if kept and kept.block_size == block_size and same_tags(kept.tags, tags) then
+    return kept.places, kept.size
+  end
+  local places, size = orbit(tags, block_size)
+  if places then
+    orbits[given] = { tags = tags, block_size = block_size, places = places, size = size }
+  end
+  return places, size
 end
 
 -- The face a read tag lies on: the face's name, the tag centre's distance from the block's
@@ -234,7 +263,7 @@ local function of_layout(given, tag_size, block_size, source)
   if not size then return nil, n, problem end
   local body = { symmetric = symmetric or false, block_size = size, source = source }
   if symmetric then
-    body.places, body.sizes = orbit(tags, size)
+    body.places, body.sizes = orbit_of(given, tags, size)
     if not body.places then return nil, 5, body.sizes end
   else
     body.places = tags

@@ -20,6 +20,7 @@
 
 local rotation = require("tagpose.core.rotation")
 local cube = require("tagpose.layout.cube")
+local symmetric_angle = require("tagpose.block.identity").symmetric_angle
 
 local sqrt, abs, rad, huge = math.sqrt, math.abs, math.rad, math.huge
 local INVERSE = cube.INVERSE
@@ -286,13 +287,7 @@ function M.twin_of(h, fitted, symmetric)
   for i = 1, #fitted do
     local f = fitted[i]
     if f.cost < huge then
-      local _, angle
-      if symmetric then
-        _, angle = cube.nearest(t_mul(f.r, h.start.r, work))
-      else
-        angle = rotation.angle(f.r, h.start.r)
-      end
-      if angle < M.TWIN_ANGLE then return f end
+      if symmetric_angle(f.r, h.start.r, symmetric) < M.TWIN_ANGLE then return f end
     end
   end
   return nil

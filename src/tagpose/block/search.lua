@@ -92,15 +92,20 @@ local function form(fr, s, a, free, links, state)
   return h
 end
 
-local function ascending(p, q) return p < q end
+-- The keys of a table keyed by hypothesis keys (whole numbers), in ascending order.
+local function sorted_keys(t)
+  local keys = {}
+  for key in pairs(t) do keys[#keys + 1] = key end
+  table.sort(keys)
+  return keys
+end
 
 -- The best hypothesis of two or more tags among the free detections (most members, then the
 -- lowest cost, the first seed in order on a tie), or nil. The pending seeds are formed first,
 -- in order.
 local function best_hypothesis(fr, free, links, state)
-  local cache, qualifying, keys = state.cache, state.qualifying, {}
-  for key in pairs(state.pending) do keys[#keys + 1] = key end
-  table.sort(keys, ascending)
+  local cache, qualifying = state.cache, state.qualifying
+  local keys = sorted_keys(state.pending)
   for i = 1, #keys do
     local key = keys[i]
     local s = math.floor((key - 1) / 2)
@@ -109,9 +114,7 @@ local function best_hypothesis(fr, free, links, state)
     qualifying[key] = #h.members > 1 and h.cost < huge or nil
   end
   state.pending = {}
-  keys = {}
-  for key in pairs(qualifying) do keys[#keys + 1] = key end
-  table.sort(keys, ascending)
+  keys = sorted_keys(qualifying)
   local best = nil
   for i = 1, #keys do
     local h = cache[keys[i]]

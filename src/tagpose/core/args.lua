@@ -77,6 +77,18 @@ function M.check_sizes(v, name)
   if not any then return name .. ": a size or a table of sizes by tag id expected, got {}" end
 end
 
+--- The size of tag `id` in a size argument (`check_sizes`: a size, or sizes by tag id with an
+-- optional `default`).
+-- @tparam number|table sizes
+-- @tparam any id
+-- @treturn number|nil its size, or nil when the table has none for it and no default
+function M.size_of(sizes, id)
+  if type(sizes) ~= "table" then return sizes end
+  local size = sizes[id]
+  if size == nil then size = sizes.default end
+  return size
+end
+
 --- Read four corners (`{u, v}` or `{x = u, y = v}` each) into the flat array `out`
 -- (`{u1, v1, ..., u4, v4}`, in the detection order c1..c4).
 -- @tparam any corners

@@ -22,7 +22,7 @@ local camera_model = require("tagpose.core.camera")
 local cube = require("tagpose.layout.cube")
 local model = require("tagpose.layout.model")
 
-local is_positive, describe = args.is_positive, args.describe
+local is_positive, describe, size_of = args.is_positive, args.describe, args.size_of
 
 local M = {}
 
@@ -218,14 +218,6 @@ local FACE_FRAMES = {
 
 -- the default faces: ids 0 to 5 on +x, -x, +y, -y, +z, -z
 local DEFAULT_FACES = { [0] = "+x", "-x", "+y", "-y", "+z", "-z" }
-
--- The size of tag `id` in `tag_size` (a size, or sizes by id with an optional `default`).
-local function size_of(tag_size, id)
-  if type(tag_size) ~= "table" then return tag_size end
-  local size = tag_size[id]
-  if size == nil then size = tag_size.default end
-  return size
-end
 
 --- The layout of a cube block with a centred tag on each face named: the standard cube, whose
 -- faces carry the tags as the lab's blocks do (tag z into the block; on the side faces the

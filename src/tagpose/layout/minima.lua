@@ -23,11 +23,20 @@ local M = {}
 -- fit stops within its tolerance of the minimum, not at it).
 M.SAME_MINIMUM = 1e-3
 
-local function finite(r, x, y, z, sse)
+--- True when a fitted pose and its squared error are finite (tested on their sum, which an
+-- infinity or a NaN anywhere makes not finite).
+-- @tparam {number,...} r flat rotation
+-- @tparam number x translation
+-- @tparam number y
+-- @tparam number z
+-- @tparam number sse squared pixel error
+-- @treturn boolean
+function M.finite(r, x, y, z, sse)
   local s = x + y + z + sse
   for i = 1, 9 do s = s + r[i] end
   return is_finite(s)
 end
+local finite = M.finite
 
 local r_k = {} -- one start's fit
 

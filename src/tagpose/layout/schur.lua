@@ -152,6 +152,26 @@ local function add_projected(Z, bo, v, vo, base)
   end
 end
 
+-- Add Z_o q (q the six numbers from v[vo + 1]) to out from go + 1.
+local function add_product(Z, bo, v, vo, out, go)
+  for r = 1, 6 do
+    local s = 0
+    for c = 1, 6 do s = s + Z[bo + (r - 1) * 6 + c] * v[vo + c] end
+    out[go + r] = out[go + r] + s
+  end
+end
+
+-- Block i of the side eliminated (upper triangles in `blocks`, gradients in `g`), damped by f,
+-- factored into L at 36(i - 1), and its gradient forward-substituted into zf at 6(i - 1): the
+-- start of either elimination. False when the block is not positive definite.
+local function factor(blocks, g, i, f, L)
+  local lo, go = 36 * (i - 1), 6 * (i - 1)
+  if not cholesky6(blocks, 21 * (i - 1), f, L, lo) then return false end
+  for k = 1, 6 do zf[go + k] = g[go + k] end
+  forward6(L, lo, zf, go, 1)
+  return true
+end
+
 -- The damped blocks (upper triangles in `blocks`, gradients in `g`) of the side kept into the
 -- reduced system (order n): block j at slot(j) (0: not in it).
 local function kept_blocks(blocks, g, count, slot, f, n)
@@ -179,11 +199,9 @@ end
 -- zf; ZᵀZ and Zᵀz into the reduced system (order n). False when the block is not positive
 -- definite.
 local function eliminate_frame(P, fi, f, n)
-  local A, gA, B, L, Z, free, ot = P.A, P.gA, P.B, P.inv, P.Z, P.free, P.ot
+  local B, L, Z, free, ot = P.B, P.inv, P.Z, P.free, P.ot
   local lo, go = 36 * (fi - 1), 6 * (fi - 1)
-  if not cholesky6(A, 21 * (fi - 1), f, L, lo) then return false end
-  for k = 1, 6 do zf[go + k] = gA[go + k] end
-  forward6(L, lo, zf, go, 1)
+  if not factor(P.A, P.gA, fi, f, L) then return false end
   local first, last = P.first[fi], P.last[fi]
   for o = first, last do
     local bo = 36 * (o - 1)
@@ -209,12 +227,7 @@ local function back_frames(P, y, x)
     local go = 6 * (fi - 1)
     for k = 1, 6 do x[go + k] = zf[go + k] end
     for o = P.first[fi], P.last[fi] do
-      local bo, yo = 36 * (o - 1), 6 * (ot[o] - 1)
-      for r = 1, 6 do
-        local s = 0
-        for c = 1, 6 do s = s + Z[bo + (r - 1) * 6 + c] * y[yo + c] end
-        x[go + r] = x[go + r] + s
-      end
+      add_product(Z, 36 * (o - 1), y, 6 * (ot[o] - 1), x, go)
     end
     backward6(L, 36 * (fi - 1), x, go, 1)
     for k = 1, 6 do x[go + k] = -x[go + k] end
@@ -304,11 +317,9 @@ end
 -- observations into P.Z, w = L⁻¹g into zf; WᵀW and Wᵀw into the reduced system over the
 -- frames (order n). False when the block is not positive definite.
 local function eliminate_tag(P, i, f, n)
-  local C, gC, B, L, Z, of, seen = P.C, P.gC, P.B, P.inv, P.Z, P.of, P.seen
+  local B, L, Z, of, seen = P.B, P.inv, P.Z, P.of, P.seen
   local lo, go = 36 * (i - 1), 6 * (i - 1)
-  if not cholesky6(C, 21 * (i - 1), f, L, lo) then return false end
-  for k = 1, 6 do zf[go + k] = gC[go + k] end
-  forward6(L, lo, zf, go, 1)
+  if not factor(P.C, P.gC, i, f, L) then return false end
   local first, last = P.seen_first[i], P.seen_first[i + 1] - 1
   for s = first, last do
     local o = seen[s]
@@ -335,12 +346,7 @@ local function back_tags(P, x, y)
       for k = 1, 6 do y[go + k] = zf[go + k] end
       for s = P.seen_first[i], P.seen_first[i + 1] - 1 do
         local o = seen[s]
-        local bo, xo = 36 * (o - 1), 6 * (of[o] - 1)
-        for r = 1, 6 do
-          local v = 0
-          for c = 1, 6 do v = v + Z[bo + (r - 1) * 6 + c] * x[xo + c] end
-          y[go + r] = y[go + r] + v
-        end
+        add_product(Z, 36 * (o - 1), x, 6 * (of[o] - 1), y, go)
       end
       backward6(L, go * 6, y, go, 1)
       for k = 1, 6 do y[go + k] = -y[go + k] end

@@ -40,7 +40,6 @@ local pipeline = require("tagpose.core.pipeline")
 local uncertainty = require("tagpose.uncertainty")
 
 local sqrt, cos, huge = math.sqrt, math.cos, math.huge
-local is_finite = compat.is_finite
 local mul_t = rotation.multiply_transpose
 
 local M = {}
@@ -262,11 +261,7 @@ local function uncertain(n, body, alt, a, b, s2, kappa)
   end
 end
 
-local function finite(r, x, y, z, sse)
-  local s = x + y + z + sse
-  for i = 1, 9 do s = s + r[i] end
-  return is_finite(s)
-end
+local finite = minima.finite
 
 -- The used tags' indices and ids, and the skipped detections, on the body.
 local function finish(body, used, n, skipped)

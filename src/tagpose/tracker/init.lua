@@ -40,7 +40,7 @@ local smooth = require("tagpose.tracker.smooth")
 
 local sqrt = math.sqrt
 local centre_and_side = associate.centre_and_side
-local is_finite, describe = compat.is_finite, args.describe
+local is_finite, describe, size_of = compat.is_finite, args.describe, args.size_of
 
 local M = {}
 
@@ -67,13 +67,6 @@ local function raise(n, fname, message)
   args.raise(n, fname, message, 3)
 end
 
--- the tag size of an id: a number, or nil
-local function size_of(sizes, id)
-  if type(sizes) == "number" then return sizes end
-  local s = sizes[id]
-  if s == nil then s = sizes.default end
-  return s
-end
 
 -- What is wrong with a tag_size argument, or nil.
 local function check_sizes(tag_size)
@@ -285,13 +278,12 @@ local function advance(self, i, id, t, time)
   return t, false
 end
 
--- Entry i of the frame, well formed, continuing track t (or nil): its entry of the result.
+-- Entry i of the frame, well formed, continuing track t (or nil): its entry of the result (and
+-- with a pose, its smoothing record). False when it is skipped (no tag size for its id).
 local function detection(self, i, id, t, time, row, entry)
   local size = size_of(self.tag_size, id)
   if not size then
     entry.reason = "tracker: no tag size for id " .. tostring(id)
-    entry.skipped = true
-    if self.recording then smooth.record(self.recorded, row, 0, -1, 0.5, 0.5) end
     return false
   end
   local w, px = self.work, self.pxs[i]
@@ -308,7 +300,6 @@ local function detection(self, i, id, t, time, row, entry)
     t.row = row
   else
     entry.reason = first
-    if self.recording then smooth.record(self.recorded, row, 0, -1, 0.5, 0.5) end
   end
   return true
 end
@@ -367,24 +358,17 @@ local function feed(self, detections, time, fname, solving)
     local why = read_entry(self, det, i)
     local entry = { index = i, reason = why }
     seen[i] = entry
-    if why then
-      if type(det) == "table" and det.id == det.id then entry.id = det.id end
-    else
-      entry.id = det.id
-    end
+    if type(det) == "table" and det.id == det.id then entry.id = det.id end
   end
   local match = associate.assign(self.live, n, self.ids, self.us, self.vs, self.ss, time,
     M.GATE, self.match, self.frames)
   for i = 1, n do
     local entry, id = seen[i], self.ids[i]
-    if id ~= nil then
-      detection(self, i, id, match[i], time, base + i, entry)
-    elseif self.recording then
+    local tracked = id ~= nil and detection(self, i, id, match[i], time, base + i, entry)
+    if not tracked then seen.skipped = seen.skipped + 1 end
+    -- (a row without a pose: malformed, skipped, or no pose from its corners)
+    if self.recording and not entry.pose then
       smooth.record(self.recorded, base + i, 0, -1, 0.5, 0.5)
-    end
-    if id == nil or entry.skipped then
-      entry.skipped = nil
-      seen.skipped = seen.skipped + 1
     end
   end
   tracks.evict(self.live, self.max_tracks)
