@@ -31,6 +31,37 @@ local function positive_finite(x)
   return x > 0 and x < huge
 end
 
+--- The arguments of command C, read one at a time: `next()` (the next, nil after the last),
+-- `peek()` (the one after, not taken), `value(name)` (the value of option `name`: a usage error
+-- when there is none or it is an option), `number(name, check, what)` (the value a decimal
+-- number for which `check` is true, else the usage error `NAME: WHAT expected, got V`) and
+-- `positive(name)` (a positive finite number).
+local function arguments(C, argv)
+  local A, i = {}, 0
+  function A.next()
+    i = i + 1
+    return argv[i]
+  end
+  function A.peek()
+    return argv[i + 1]
+  end
+  function A.value(option)
+    local v = A.next()
+    if v == nil or (v:sub(1, 2) == "--" and #v > 2) then C.usage(option .. " needs a value") end
+    return v
+  end
+  function A.number(option, check, what)
+    local v = A.value(option)
+    local x = compat.decimal(v)
+    if not (x and check(x)) then C.usage(option .. ": " .. what .. " expected, got " .. v) end
+    return x
+  end
+  function A.positive(option)
+    return A.number(option, positive_finite, "positive number")
+  end
+  return A
+end
+
 --- A command's frame.
 -- @tparam string name what its messages start with (`"replay"`: `replay: ...`)
 -- @tparam string usage its usage lines
@@ -61,37 +92,11 @@ function M.new(name, usage)
     leave(0, "")
   end
 
-  --- The arguments, read one at a time: `next()` (the next, nil after the last), `peek()`
-  -- (the one after, not taken), `value(name)` (the value of option `name`: a usage error
-  -- when there is none or it is an option), `number(name, check, what)` (the value a decimal
-  -- number for which `check` is true, else the usage error `NAME: WHAT expected, got V`) and
-  -- `positive(name)` (a positive finite number).
+  --- The arguments, read one at a time (`arguments`).
   -- @tparam {string,...} argv
   -- @treturn table
   function C.args(argv)
-    local A, i = {}, 0
-    function A.next()
-      i = i + 1
-      return argv[i]
-    end
-    function A.peek()
-      return argv[i + 1]
-    end
-    function A.value(option)
-      local v = A.next()
-      if v == nil or (v:sub(1, 2) == "--" and #v > 2) then C.usage(option .. " needs a value") end
-      return v
-    end
-    function A.number(option, check, what)
-      local v = A.value(option)
-      local x = compat.decimal(v)
-      if not (x and check(x)) then C.usage(option .. ": " .. what .. " expected, got " .. v) end
-      return x
-    end
-    function A.positive(option)
-      return A.number(option, positive_finite, "positive number")
-    end
-    return A
+    return arguments(C, argv)
   end
 
   --- The corner log, opened, and the camera file's path, in this order: a log that cannot be
