@@ -55,6 +55,10 @@ end
 local lazy = {} -- the modules the fields made on read need, loaded with them
 local cand_a, cand_b -- the records the uncertainty takes, rebuilt from a metatable
 local analysed -- the metatable whose candidates cand_a and cand_b hold now
+-- the count of analyses made: each result's analysis is named by its own number (X_ANALYSED),
+-- so that the uncertainty reuses its factors for that analysis only, never for another pose's
+-- that happens to be in the same scratch records
+local serial = 0
 
 -- The checksum of a pose table's position and quaternion.
 local function checksum(p)
@@ -101,9 +105,10 @@ local function analyse(mt)
   local a, b = candidates(mt)
   local sigma2, kappa = mt[SIGMA2], 1
   if not sigma2 then sigma2, kappa = lazy.uncertainty.noise(a.sse) end
-  lazy.uncertainty.assess(a, b, sigma2)
+  serial = serial + 1
+  lazy.uncertainty.assess(a, b, sigma2, serial)
   mt[SIGMA2], x[X_K_A], x[X_K_B], x[X_ANALYSED], x[X_KAPPA] = sigma2, a.k, b and b.k or 0,
-    true, kappa
+    serial, kappa
   local d = a.chord
   for i = 1, 6 do x[X_CHORD + i] = b and d[i] or 0 end
   local first = mt[FIRST]
@@ -115,10 +120,10 @@ local function analyse(mt)
   return x
 end
 
--- The covariance of the returned pose, or of its alternative.
+-- The covariance of the returned pose, or of its alternative (x analysed: the uncertainty
+-- reuses the factors of x's own analysis when nothing was factored since).
 local function covariance(mt, x, is_alt)
-  local current = analysed == mt -- the analysis's candidates are this result's: reuse it
-  if not current then candidates(mt) end
+  if analysed ~= mt then candidates(mt) end
   local c, slot, k, sign = cand_a, X_COV_A, x[X_K_A], 1
   if is_alt then c, slot, k, sign = cand_b, X_COV_B, x[X_K_B], -1 end
   -- (σ² estimated from the frame: the covariance and its chord term widened by κ, so that its
@@ -127,7 +132,7 @@ local function covariance(mt, x, is_alt)
   c.k = kappa * k
   local d = c.chord
   for i = 1, 6 do d[i] = sign * x[X_CHORD + i] end
-  local cov = lazy.uncertainty.covariance(c, kappa * mt[SIGMA2], x[slot] or nil, current)
+  local cov = lazy.uncertainty.covariance(c, kappa * mt[SIGMA2], x[slot] or nil, x[X_ANALYSED])
   x[slot] = cov
   return cov
 end
