@@ -36,6 +36,7 @@ local ON_DEMAND = {
   tracker = "tagpose.tracker",
   calibration = "tagpose.formats.calibration",
   transform = "tagpose.transform",
+  localizer = "tagpose.localizer",
 }
 
 setmetatable(M, {

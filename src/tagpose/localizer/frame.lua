@@ -1,0 +1,207 @@
+--- One camera frame's robot pose: the map tags it saw turned into observations, a start found
+-- among the poses each tag alone allows, the fit (`tagpose.localizer.fit`) with the priors, the
+-- tags that do not agree with the rest (or with the priors) taken out one at a time, and the
+-- covariance.
+--
+-- Each tag seen alone gives two robot poses (the two minima of the planar ambiguity, from
+-- `tagpose.solve`, carried through the mount and the map). Each is scored by the whole frame:
+-- every tag's χ² at that pose, capped (a tag that does not agree costs the cap, whatever its
+-- error), plus the priors'; the best starts the fit, or the `start` given (the estimate the
+-- filter predicts). A tag whose χ² after the fit exceeds the gate for its 8 residuals is
+-- rejected and the rest fitted again; so is a frame whose priors alone are past their gate (a
+-- lone phantom detection, a tag placed elsewhere than the map says, seen alone, puts the robot
+-- in the air or tilted).
+-- @module tagpose.localizer.frame
+
+local fit = require("tagpose.localizer.fit")
+local rotation = require("tagpose.core.rotation")
+
+local huge, sqrt = math.huge, math.sqrt
+
+local M = {}
+
+--- χ² gate of one tag's 8 residuals (P = 1e-4 for Gaussian corners of the given σ).
+M.TAG_GATE = 31.8
+--- Gate of what one tag adds to a fit's χ² (χ²(8) for a tag that agrees; the mount's error
+-- widens it: 1.5 `TAG_GATE`).
+M.LOO_GATE = 47.7
+--- Cost of a tag that does not agree with a start, in the start's score.
+M.CAP = 60
+--- χ² gate of the priors at the fit (3 or 4 residuals: P ≈ 1e-4).
+M.PRIOR_GATE = 23.5
+
+-- A pose's robot → field rotation and position from a tag's camera-frame pose (r flat tag →
+-- camera, t in metres), the tag's place (flat tag → field rotation, centre) and the mount.
+local function robot_pose(tag, mount, r, t)
+  -- camera → field: R_fc = R_ft R_ctᵀ; its centre c = p - R_fc t
+  local rfc = rotation.multiply_transpose(tag.r, r, {})
+  local cx = tag.x - (rfc[1] * t[1] + rfc[2] * t[2] + rfc[3] * t[3])
+  local cy = tag.y - (rfc[4] * t[1] + rfc[5] * t[2] + rfc[6] * t[3])
+  local cz = tag.z - (rfc[7] * t[1] + rfc[8] * t[2] + rfc[9] * t[3])
+  -- robot → field: R = R_fc Mᵀ; t = c - R m
+  local R = rotation.multiply_transpose(rfc, mount.r, {})
+  local m = mount.t
+  return { r = R, t = { cx - (R[1] * m[1] + R[2] * m[2] + R[3] * m[3]),
+    cy - (R[4] * m[1] + R[5] * m[2] + R[6] * m[3]),
+    cz - (R[7] * m[1] + R[8] * m[2] + R[9] * m[3]) } }
+end
+M.robot_pose = robot_pose
+
+local function copy_pose(p)
+  local r = {}
+  for i = 1, 9 do r[i] = p.r[i] end
+  return { r = r, t = { p.t[1], p.t[2], p.t[3] } }
+end
+
+-- The score of a start: the priors' cost and each active tag's χ², capped.
+local function score(obs, n, active, pr, pose, sigma)
+  local r, t = pose.r, pose.t
+  local s = 0
+  for i = 1, n do
+    if active[i] then
+      local c = fit.tag_cost(obs[i], r, t[1], t[2], t[3], sigma)
+      s = s + (c < M.CAP and c or M.CAP)
+    end
+  end
+  -- the priors, as the fit counts them
+  if pr.sigma_z then s = s + (t[3] / pr.sigma_z) ^ 2 end
+  if pr.sigma_tilt then s = s + (r[3] ^ 2 + r[6] ^ 2) / pr.sigma_tilt ^ 2 end
+  if pr.yaw then s = s + (fit.wrap(fit.yaw(r) - pr.yaw) / pr.sigma_yaw) ^ 2 end
+  return s
+end
+
+-- The priors' χ² at a pose.
+local function prior_chi2(pr, pose)
+  local r, t = pose.r, pose.t
+  local s = 0
+  if pr.sigma_z then s = s + (t[3] / pr.sigma_z) ^ 2 end
+  if pr.sigma_tilt then s = s + (r[3] ^ 2 + r[6] ^ 2) / pr.sigma_tilt ^ 2 end
+  if pr.yaw then s = s + (fit.wrap(fit.yaw(r) - pr.yaw) / pr.sigma_yaw) ^ 2 end
+  return s
+end
+
+--- Solve one frame.
+-- @tparam {table,...} obs observations (`tagpose.localizer.fit`), each also with `id` and
+--   `starts` (the robot poses its tag alone gives: one or two)
+-- @tparam int n how many
+-- @tparam table pr the priors (`fit.fit`)
+-- @tparam number sigma σ, px
+-- @tparam table nuisance σ of the mount and map (`fit.covariance`)
+-- @tparam[opt] table start a pose to start from (tried beside each tag's)
+-- @treturn table|nil `{pose =, covariance = flat 6×6, used = {ids}, rejected = {{id =, why =}},
+--   chi2 =, dof =}`, or nil and the rejected list when no tag can be kept
+function M.solve(obs, n, pr, sigma, nuisance, start)
+  local active = {}
+  for i = 1, n do active[i] = true end
+  local rejected = {}
+  local best, best_score = nil, huge
+  local function try(p)
+    local s = score(obs, n, active, pr, p, sigma)
+    if s < best_score then best, best_score = p, s end
+  end
+  if start then try(start) end
+  for i = 1, n do
+    for _, p in ipairs(obs[i].starts) do try(p) end
+  end
+  if not best then return nil, rejected end
+  local pose = copy_pose(best)
+  local kept = n
+  local chi2
+  -- every tag, then the worst past its gate out, one at a time
+  while true do
+    chi2 = fit.fit(obs, n, active, pr, pose, sigma)
+    if not (chi2 < huge) then return nil, rejected end
+    local worst, worst_c = nil, M.TAG_GATE
+    for i = 1, n do
+      if active[i] then
+        local c = fit.tag_cost(obs[i], pose.r, pose.t[1], pose.t[2], pose.t[3], sigma)
+        if c > worst_c then worst, worst_c = i, c end
+      end
+    end
+    if not worst or kept == 1 then break end
+    active[worst] = false
+    kept = kept - 1
+    rejected[#rejected + 1] = { id = obs[worst].id, chi2 = worst_c }
+  end
+  -- leave-one-out: with three tags or more, what each tag adds to the fit's χ² (the χ² with it
+  -- less the χ² of the fit of the others: χ²(8) for a tag that agrees, whatever its own
+  -- residuals); the worst past `LOO_GATE` leaves. A tag off its map place by 10 cm is absorbed
+  -- by a joint fit of far tags, its own residuals small, the others' raised: only this shows it.
+  while kept >= 3 do
+    local worst, worst_c = nil, M.LOO_GATE
+    for i = 1, n do
+      if active[i] then
+        active[i] = false
+        local p = copy_pose(pose)
+        local c = chi2 - fit.fit(obs, n, active, pr, p, sigma)
+        if c > worst_c then worst, worst_c = i, c end
+        active[i] = true
+      end
+    end
+    if not worst then break end
+    active[worst] = false
+    kept = kept - 1
+    rejected[#rejected + 1] = { id = obs[worst].id, chi2 = worst_c }
+    chi2 = fit.fit(obs, n, active, pr, pose, sigma)
+  end
+  -- a tag left out early that agrees with the fit of the rest comes back
+  local back = false
+  for k = #rejected, 1, -1 do
+    local i
+    for j = 1, n do
+      if not active[j] and obs[j].id == rejected[k].id then i = j end
+    end
+    if i and fit.tag_cost(obs[i], pose.r, pose.t[1], pose.t[2], pose.t[3], sigma) < M.TAG_GATE then
+      active[i], kept, back = true, kept + 1, true
+      table.remove(rejected, k)
+    end
+  end
+  if back then chi2 = fit.fit(obs, n, active, pr, pose, sigma) end
+  for _, r in ipairs(rejected) do
+    r.why = ("disagrees with the other tags (χ² %.0f over its 8 residuals)"):format(r.chi2)
+    r.chi2 = nil
+  end
+  local pc = prior_chi2(pr, pose)
+  if pc > M.PRIOR_GATE then
+    for i = 1, n do
+      if active[i] then
+        rejected[#rejected + 1] = { id = obs[i].id,
+          why = ("the floor, gravity or heading priors disagree (χ² %.0f)"):format(pc) }
+      end
+    end
+    return nil, rejected
+  end
+  local cov, noise = fit.covariance(obs, n, active, pr, pose, sigma, nuisance)
+  if not cov then return nil, rejected end
+  local used = {}
+  for i = 1, n do
+    if active[i] then used[#used + 1] = obs[i].id end
+  end
+  return { pose = pose, covariance = cov, noise = noise, used = used, rejected = rejected,
+    chi2 = chi2, kept = kept, active = active }
+end
+
+--- The robot poses a tag alone gives, from the camera-frame poses of `tagpose.solve`.
+-- @tparam table tag a read map tag (`tagpose.layout.model`)
+-- @tparam table mount `{r =, t =}`
+-- @tparam table pose a result of `tagpose.solve` (metres)
+-- @treturn {table,...} one or two robot poses
+function M.starts(tag, mount, pose)
+  local out = {}
+  local p = pose
+  while p do
+    local r = rotation.from_nested(p.rotation, {})
+    local t = { p.position.x, p.position.y, p.position.z }
+    out[#out + 1] = robot_pose(tag, mount, r, t)
+    if p == pose then p = pose.alternative else p = nil end
+  end
+  return out
+end
+
+--- σ of a value from a flat 6×6's diagonal.
+function M.sd(cov, i)
+  local v = cov[(i - 1) * 6 + i]
+  return v > 0 and sqrt(v) or 0
+end
+
+return M
