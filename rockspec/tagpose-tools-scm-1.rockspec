@@ -28,6 +28,7 @@ build = {
     ["tagpose.tools.command"] = "src/tagpose/tools/command.lua",
     ["tagpose.tools.csv"] = "src/tagpose/tools/csv.lua",
     ["tagpose.tools.files"] = "src/tagpose/tools/files.lua",
+    ["tagpose.tools.localize"] = "src/tagpose/tools/localize.lua",
     ["tagpose.tools.log"] = "src/tagpose/tools/log.lua",
     ["tagpose.tools.plot.draw"] = "src/tagpose/tools/plot/draw.lua",
     ["tagpose.tools.plot.figure"] = "src/tagpose/tools/plot/figure.lua",
@@ -47,6 +48,7 @@ build = {
   install = {
     bin = {
       ["tagpose-calibrate"] = "bin/tagpose-calibrate",
+      ["tagpose-localize"] = "bin/tagpose-localize",
       ["tagpose-replay"] = "bin/tagpose-replay",
     },
   },

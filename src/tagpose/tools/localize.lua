@@ -1,0 +1,316 @@
+--- tagpose-localize: replay a robot's log (corners of several cameras, odometry, gyro) through
+-- `tagpose.localizer` and write where the robot was at every camera frame.
+--
+--   tagpose-localize CORNERS.csv --map MAP --cameras CAMERAS.lua [--odometry ODOMETRY.csv]
+--     [--gyro GYRO.csv] [--single] [--tag-size S] [--map-check CHECK.csv] --out POSES.csv
+--
+-- CORNERS.csv  time,camera,tag,u1,v1,u2,v2,u3,v3,u4,v4 (rows of one time and camera are one
+--              frame; corners in the detector's order, pixels; times in seconds)
+-- --map        the map: a WPILib field JSON (its tag size from --tag-size or CAMERAS.lua's
+--              `tag_size`), or any layout file `tagpose.layout.read` takes
+-- --cameras    a Lua data file `return {NAME = {fx, fy, cx, cy, ..., mount = {position =,
+--              quaternion =}}, ..., tag_size = S}` (read as data, never run); mount = camera →
+--              robot (ROS robot frame: x forward, y left, z up, origin on the floor), metres
+-- --odometry   time,x,y,yaw: the robot's dead-reckoned pose (any frame; need not be reset)
+-- --gyro       time,yaw: the gyro's heading, radians (any offset: it is learnt from the tags)
+-- --single     each frame that saw a map tag alone, with the gyro and the floor as priors
+--              (no odometry; the gyro's offset learnt from the frames before it)
+-- --map-check  where each map tag was seen against where the map puts it:
+--              tag,dx,dy,dz,distance,frames (field frame, m), largest first
+-- --out        time,camera,x,y,z,qw,qx,qy,qz,sx,sy,syaw,c11..c66,tags,rejected: one row per
+--              camera frame (the fused mode: every frame once the robot is placed; --single:
+--              every frame answered), the robot → field pose, σ of x, y and yaw, the 6×6
+--              covariance (x, y, z, then a small rotation in the field frame), the tags used
+--              and those rejected (space-separated ids)
+--
+-- The inputs are read whole and merged in time order (at one time: odometry, gyro, then the
+-- frames), so each row is the estimate at its frame's time from the data stamped up to it.
+-- Exit status: 0 written, 1 a file cannot be read or written, or has a bad row (its file and
+-- line named), 2 a usage error or an --out that is an input. Nothing is written partially.
+-- @module tagpose.tools.localize
+
+local tagpose = require("tagpose")
+local compat = require("tagpose.core.compat")
+local output = require("tagpose.formats.output")
+local luadata = require("tagpose.formats.luadata")
+local csv = require("tagpose.tools.csv")
+local files = require("tagpose.tools.files")
+local command = require("tagpose.tools.command")
+
+local format, concat = string.format, table.concat
+local decimal = compat.decimal
+
+local USAGE = "usage: tagpose-localize CORNERS.csv --map MAP --cameras CAMERAS.lua\n"
+  .. "  [--odometry ODOMETRY.csv] [--gyro GYRO.csv] [--single] [--tag-size S]\n"
+  .. "  [--map-check CHECK.csv] --out POSES.csv\n"
+
+local cmd = command.new("localize", USAGE)
+local usage, fail, refuse = cmd.usage, cmd.fail, cmd.refuse
+
+local M = {}
+
+local MAX_RECORD, MAX_COLUMNS = 4096, 64
+local MAX_CAMERAS_BYTES = 1048576
+
+local function parse(argv)
+  local opt = {}
+  local args = cmd.args(argv)
+  local value = args.value
+  for a in args.next do
+    if a == "--help" or a == "-h" then
+      cmd.help()
+    elseif a == "--map" or a == "--cameras" or a == "--odometry" or a == "--gyro"
+      or a == "--out" or a == "--map-check" then
+      opt[a:sub(3):gsub("-", "_")] = value(a)
+    elseif a == "--tag-size" then
+      opt.tag_size = args.positive(a)
+    elseif a == "--single" then
+      opt.single = true
+    elseif a:sub(1, 2) == "--" then
+      usage("unknown option " .. a)
+    elseif not opt.corners then
+      opt.corners = a
+    else
+      usage("one corner log expected, got " .. opt.corners .. " and " .. a)
+    end
+  end
+  if not opt.corners then usage() end
+  if not opt.map then usage("give the map: --map MAP") end
+  if not opt.cameras then usage("give the cameras: --cameras CAMERAS.lua") end
+  if not opt.out then usage("give the output: --out POSES.csv") end
+  return opt
+end
+
+-- Every row of a CSV file with the named columns, as numbers (`text` columns kept as strings),
+-- each with its line; a row that is not is a failure naming the file and line.
+local function read_table(path, columns, text)
+  local reader, err = csv.reader(path, columns, MAX_RECORD, MAX_COLUMNS)
+  if not reader then fail(path .. ": " .. err) end
+  local rows = {}
+  local index = {}
+  for i, c in ipairs(columns) do index[i] = reader.column[c] end
+  while true do
+    local fields, line, reason = reader:read()
+    if fields == nil then break end
+    if not fields then
+      reader:close()
+      fail(format("%s:%d: %s", path, line, reason))
+    end
+    local row = { line = line }
+    for i, c in ipairs(columns) do
+      local v = fields[index[i]]
+      if text and text[c] then
+        row[i] = v
+      else
+        local n = decimal(v)
+        if not (n and n - n == 0) then
+          reader:close()
+          fail(format("%s:%d: %s: a finite number expected, got %q", path, line, c, v))
+        end
+        row[i] = n
+      end
+    end
+    rows[#rows + 1] = row
+  end
+  reader:close()
+  return rows
+end
+
+-- Rows in time order, or a failure at the first that goes back.
+local function in_order(path, rows)
+  for i = 2, #rows do
+    if rows[i][1] < rows[i - 1][1] then
+      fail(format("%s:%d: time %s goes back (the row before: %s)", path, rows[i].line,
+        tostring(rows[i][1]), tostring(rows[i - 1][1])))
+    end
+  end
+  return rows
+end
+
+local CORNER_COLUMNS = { "time", "camera", "tag", "u1", "v1", "u2", "v2", "u3", "v3", "u4", "v4" }
+
+-- The frames of the corner log: `{t =, camera =, detections = {...}}` in time order.
+local function read_frames(path, cameras)
+  local rows = in_order(path, read_table(path, CORNER_COLUMNS, { camera = true }))
+  local frames, last = {}, nil
+  for _, r in ipairs(rows) do
+    if not cameras[r[2]] then
+      fail(format("%s:%d: camera %q is not in the cameras file", path, r.line, r[2]))
+    end
+    if not (last and last.t == r[1] and last.camera == r[2]) then
+      last = { t = r[1], camera = r[2], detections = {}, line = r.line }
+      frames[#frames + 1] = last
+    end
+    local d = last.detections
+    d[#d + 1] = { id = r[3], corners = { { r[4], r[5] }, { r[6], r[7] }, { r[8], r[9] },
+      { r[10], r[11] } } }
+  end
+  return frames
+end
+
+local function read_cameras(path)
+  local text, err = output.read_text(path, MAX_CAMERAS_BYTES, "a cameras file")
+  if not text then fail(err) end
+  local data, derr = luadata.decode(text, path)
+  if not data then fail(tostring(derr)) end
+  if type(data) ~= "table" then fail(path .. ": a table of cameras expected") end
+  return data
+end
+
+-- The map check's rows: for each tag seen in a frame that placed the robot (with the tag
+-- itself left out of that frame's fit only by the test), the tag's centre as the camera saw
+-- it (`tagpose.solve`'s pose on the branch nearer the map's turn) through the estimate and the
+-- mount, against the map's; weighted by 1 / distance² (a far tag's depth is the least sure).
+local function map_check_rows(sums)
+  local rows = {}
+  for id, s in pairs(sums) do
+    local w = s.w
+    local dx, dy, dz = s.x / w, s.y / w, s.z / w
+    rows[#rows + 1] = { id = id, dx = dx, dy = dy, dz = dz,
+      d = math.sqrt(dx * dx + dy * dy + dz * dz), n = s.n }
+  end
+  table.sort(rows, function(a, b)
+    if a.d ~= b.d then return a.d > b.d end
+    return a.id < b.id
+  end)
+  return rows
+end
+
+local function check_tag(loc, sums, res, fr)
+  if not (res and res.position and res.accepted) then return end
+  local cam = loc.cameras[fr.camera]
+  local rotation = require("tagpose.core.rotation")
+  local R = rotation.from_nested(res.rotation, {})
+  local t = res.position
+  for _, d in ipairs(fr.detections) do
+    local tag = loc.tags[d.id]
+    if tag then
+      local p = tagpose.solve(d.corners, cam.intr, tag.size)
+      if p then
+        -- the branch whose turn is nearer the map's
+        local best, best_a = nil, math.huge
+        for _, q in ipairs({ p, p.alternative }) do
+          local rc = rotation.from_nested(q.rotation, {})
+          local rf = rotation.multiply(R, rotation.multiply(cam.mount.r, rc, {}), {})
+          local a = rotation.angle(rf, tag.r)
+          if a < best_a then best, best_a = q, a end
+        end
+        local c = best.position
+        local m, mt = cam.mount.r, cam.mount.t
+        local rx = m[1] * c.x + m[2] * c.y + m[3] * c.z + mt[1]
+        local ry = m[4] * c.x + m[5] * c.y + m[6] * c.z + mt[2]
+        local rz = m[7] * c.x + m[8] * c.y + m[9] * c.z + mt[3]
+        local fx = R[1] * rx + R[2] * ry + R[3] * rz + t.x
+        local fy = R[4] * rx + R[5] * ry + R[6] * rz + t.y
+        local fz = R[7] * rx + R[8] * ry + R[9] * rz + t.z
+        local dist2 = c.x * c.x + c.y * c.y + c.z * c.z
+        local w = 1 / dist2
+        local s = sums[d.id] or { x = 0, y = 0, z = 0, w = 0, n = 0 }
+        sums[d.id] = s
+        s.x, s.y, s.z = s.x + w * (fx - tag.x), s.y + w * (fy - tag.y), s.z + w * (fz - tag.z)
+        s.w, s.n = s.w + w, s.n + 1
+      end
+    end
+  end
+end
+
+local function row_text(fr, res)
+  local p, q, s = res.position, res.quaternion, res.sigma
+  local parts = { format("%.6f,%s,%.6f,%.6f,%.6f,%.9f,%.9f,%.9f,%.9f,%.6g,%.6g,%.6g", fr.t,
+    fr.camera, p.x, p.y, p.z, q.w, q.x, q.y, q.z, s.x, s.y, s.yaw) }
+  local C = res.covariance
+  for i = 1, 6 do
+    for j = 1, 6 do parts[#parts + 1] = format("%.6g", C[i][j]) end
+  end
+  local used, rej = {}, {}
+  for _, id in ipairs(res.tags) do used[#used + 1] = format("%d", id) end
+  for _, r in ipairs(res.rejected) do rej[#rej + 1] = format("%d", r.id) end
+  parts[#parts + 1] = concat(used, " ")
+  parts[#parts + 1] = concat(rej, " ")
+  return concat(parts, ",")
+end
+
+local function header()
+  local h = { "time,camera,x,y,z,qw,qx,qy,qz,sx,sy,syaw" }
+  for i = 1, 6 do
+    for j = 1, 6 do h[#h + 1] = format("c%d%d", i, j) end
+  end
+  h[#h + 1] = "tags,rejected"
+  return concat(h, ",")
+end
+
+local function run(argv, open)
+  local opt = parse(argv)
+  local inputs = { { name = "the corner log", path = opt.corners },
+    { name = "the map", path = opt.map }, { name = "the cameras file", path = opt.cameras },
+    { name = "the odometry", path = opt.odometry }, { name = "the gyro log", path = opt.gyro } }
+  local outputs = { { name = "the poses (--out)", path = opt.out },
+    { name = "the map check (--map-check)", path = opt.map_check } }
+  local clash = files.clash(inputs, outputs)
+  if clash then refuse(clash) end
+  local out, err = output.open(opt.out)
+  if not out then fail(err) end
+  open[#open + 1] = out
+  local check
+  if opt.map_check then
+    check, err = output.open(opt.map_check)
+    if not check then fail(err) end
+    open[#open + 1] = check
+  end
+  local cameras = read_cameras(opt.cameras)
+  local size = opt.tag_size or cameras.tag_size
+  local map, merr = tagpose.layout.read(opt.map, size and { size = size } or nil)
+  if not map then fail(merr) end
+  local ok, loc = pcall(tagpose.localizer.new, map, cameras,
+    { mode = opt.single and "single" or "fused" })
+  if not ok then fail(opt.cameras .. ": " .. tostring(loc):gsub("^bad argument #%d to 'new' %(",
+    ""):gsub("%)$", "")) end
+  local frames = read_frames(opt.corners, loc.cameras)
+  local odo = opt.odometry and not opt.single
+    and in_order(opt.odometry, read_table(opt.odometry, { "time", "x", "y", "yaw" })) or {}
+  local gyro = opt.gyro and in_order(opt.gyro, read_table(opt.gyro, { "time", "yaw" })) or {}
+  -- merged in time order: at one time the odometry, the gyro, then the frames
+  local i, j = 1, 1
+  local sums = {}
+  out:write(header(), "\n")
+  local rows = 0
+  for _, fr in ipairs(frames) do
+    while true do
+      local to, tg = odo[i] and odo[i][1], gyro[j] and gyro[j][1]
+      if to and to <= fr.t and (not tg or to <= tg) then
+        loc:odometry(to, odo[i][2], odo[i][3], odo[i][4])
+        i = i + 1
+      elseif tg and tg <= fr.t then
+        loc:gyro(tg, gyro[j][2])
+        j = j + 1
+      else
+        break
+      end
+    end
+    local res = loc:update(fr.camera, fr.detections, fr.t)
+    if res and res.position then
+      out:write(row_text(fr, res), "\n")
+      rows = rows + 1
+    end
+    if check then check_tag(loc, sums, res, fr) end
+  end
+  if check then
+    check:write("tag,dx,dy,dz,distance,frames\n")
+    for _, r in ipairs(map_check_rows(sums)) do
+      check:write(format("%d,%.4f,%.4f,%.4f,%.4f,%d\n", r.id, r.dx, r.dy, r.dz, r.d, r.n))
+    end
+    check:commit()
+  end
+  out:commit()
+  io.stdout:write(format("wrote %s: %d rows from %d camera frames\n", opt.out, rows, #frames))
+  return 0
+end
+
+--- Run the command.
+-- @tparam {string,...} argv
+-- @treturn int the exit status
+function M.main(argv)
+  return cmd.main(run, argv)
+end
+
+return M
