@@ -30,6 +30,10 @@
 --   (measured on Lua 5.1 to 5.4 and LuaJIT). A regular file is closed unwritten and takes the
 --   temporary file's route; anything else is written through that one handle (so that a
 --   FIFO's reader sees one writer, opened once, and its end of file when it is closed).
+--   Not `"wb"`: it would empty a regular file before it is known to be one. Not `"r+b"`
+--   (which does not wait on a FIFO on Linux): it makes the writer a reader too, so that with
+--   no reader what is written is lost at the close, and a reader that goes away leaves the
+--   writer waiting on a full pipe for ever instead of ending it (both measured).
 -- * A name in /dev itself (`/dev/null`, `/dev/stdout`), under `/dev/fd/` or under `/proc/` is
 --   always written through, appended to, even when it leads to a regular file
 --   (`--out /dev/stdout > poses.csv`): those names are the system's, for devices and for what
