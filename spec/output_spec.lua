@@ -210,4 +210,24 @@ describe("tagpose.formats.output", function()
       assert.equal("old\n", run.read(path))
     end)
   end)
+
+  it("is the one writer of files in the library and the commands", function()
+    -- any other io.open for writing, os.rename or os.remove in src/ would be a second writer
+    -- with its own idea of a device or a FIFO
+    local listing = run.run("find src -name '*.lua' | sort")
+    local found = {}
+    for path in listing:gmatch("[^\n]+") do
+      if path ~= "src/tagpose/formats/output.lua" then
+        local n = 0
+        for line in io.lines(path) do
+          n = n + 1
+          if line:find("io%.open%([^)]*,%s*[\"'][wa]") or line:find("io%.open%([^)]*%+")
+              or line:find("os%.rename") or line:find("os%.remove") then
+            found[#found + 1] = path .. ":" .. n .. ": " .. line
+          end
+        end
+      end
+    end
+    assert.same({}, found)
+  end)
 end)
