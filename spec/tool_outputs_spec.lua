@@ -108,6 +108,45 @@ describe("tagpose-replay and tagpose-calibrate", function()
     assert.same(before, snapshot())
   end)
 
+  it("write through a device, a FIFO or a pipe, in place, and replace none of them", function()
+    -- (the devices through links in dir: a command that renamed over them replaces the link)
+    local has = select(2, run.run("command -v timeout >/dev/null && command -v mkfifo"
+      .. " >/dev/null")) == 0
+    if not has then return end
+    run.run("cd " .. run.quote(dir) .. " && rm -f null.csv plot.fifo && ln -s /dev/null null.csv"
+      .. " && mkfifo plot.fifo")
+    -- the pose log into a link to /dev/null, the plot into a FIFO read by cat
+    local text, status = run.run("cd " .. run.quote(dir) .. " && { timeout 20 cat plot.fifo"
+      .. " > plot.svg & timeout 20 " .. run.quote(run.lua()) .. " "
+      .. run.quote(os.getenv("PWD") .. "/" .. REPLAY)
+      .. " log.csv --out null.csv --svg plot.fifo 2>&1; wait; }")
+    assert.equal(0, status, text)
+    assert.matches("wrote null.csv (377 rows)", text, 1, true)
+    assert.matches("wrote plot.fifo (", text, 1, true)
+    assert.matches("</svg>", run.read(dir .. "/plot.svg"), 1, true)
+    local _, kinds = run.run("cd " .. run.quote(dir) .. " && test -L null.csv && test -p plot.fifo")
+    assert.equal(0, kinds, "a link or the FIFO replaced by a file")
+    -- the pose log into a pipe (/dev/fd/3), the summary apart
+    text, status = run.run("cd " .. run.quote(dir) .. " && { timeout 20 " .. run.quote(run.lua())
+      .. " " .. run.quote(os.getenv("PWD") .. "/" .. REPLAY) .. " log.csv --out /dev/fd/3"
+      .. " 3>&1 >summary.txt 2>&1; } | wc -l")
+    assert.equal(0, status, text)
+    assert.equal(378, tonumber(text), text)
+    -- the calibrated layout into a link to /dev/null
+    text, status = command(CALIBRATE, "cube/corners.csv --cube 0.0229,0.0548 --out null.csv")
+    assert.equal(0, status, text)
+    assert.matches("wrote null.csv", text, 1, true)
+    _, kinds = run.run("test -L " .. run.quote(dir .. "/null.csv"))
+    assert.equal(0, kinds, "the link replaced by a file")
+    -- and the library's layout.write
+    run.run("cd " .. run.quote(dir) .. " && ln -sf /dev/null null.lua")
+    assert.is_true(tagpose.layout.write(dir .. "/null.lua", assert(tagpose.layout.read(dir
+      .. "/cube/nominal.csv"))))
+    _, kinds = run.run("test -L " .. run.quote(dir .. "/null.lua"))
+    assert.equal(0, kinds, "the link replaced by a file")
+    assert.same(before, snapshot())
+  end)
+
   it("end with status 1 and say so when standard output cannot be written", function()
     if not io.open("/dev/full", "w") then return end -- Linux, the BSDs
     local cases = { { REPLAY, "log.csv" }, { REPLAY, "log.csv --out -" },
@@ -122,6 +161,35 @@ describe("tagpose-replay and tagpose-calibrate", function()
       assert.matches("standard output: No space left on device", text, 1, true)
     end
   end)
+
+  it("end by SIGPIPE on a closed pipe, or with status 1 and a message where it is ignored",
+    function()
+      -- Lua cannot ignore SIGPIPE: a reader that has gone (`| head`) ends a command as it ends
+      -- any Unix filter, status 141 in the shell; where SIGPIPE is ignored (`trap '' PIPE`, a
+      -- parent that ignores it) the write fails instead, and that is status 1 and a message
+      local cases = { { REPLAY, "log.csv" }, { REPLAY, "log.csv --out -" },
+        { CALIBRATE, "cube/corners.csv --layout cube/nominal.csv" } }
+      for _, c in ipairs(cases) do
+        local parts = { run.quote(run.lua()), run.quote(os.getenv("PWD") .. "/" .. c[1]) }
+        for a in c[2]:gmatch("%S+") do parts[#parts + 1] = run.quote(a) end
+        -- the reader (`true`) is gone before the command writes
+        local pipeline = "{ sleep 0.5; " .. table.concat(parts, " ")
+          .. " 2>err.txt; echo $? >status.txt; } | true"
+        for _, ignored in ipairs({ false, true }) do
+          local script = (ignored and "trap '' PIPE; " or "") .. pipeline
+          run.run("cd " .. run.quote(dir) .. " && sh -c " .. run.quote(script))
+          local status = tonumber(run.read(dir .. "/status.txt"))
+          local said = run.read(dir .. "/err.txt")
+          local name = c[2] .. (ignored and " (SIGPIPE ignored)" or "")
+          if ignored or status ~= 141 then
+            assert.equal(1, status, name .. ": " .. said)
+            assert.matches(": standard output: Broken pipe\n$", said, 1, false, name)
+          else
+            assert.equal("", said, name)
+          end
+        end
+      end
+    end)
 end)
 
 describe("tagpose.tools.files", function()

@@ -22,7 +22,8 @@
 -- format, read and written. A file larger than `MAX_BYTES` is refused unread. Writing checks
 -- and encodes everything first and then writes the file whole (`tagpose.formats.output`: a
 -- temporary file renamed onto the target), so a refused layout or a failed write leaves the
--- old file as it was. A name is written so that the format's reader gives it back: escaped in
+-- old file as it was; a target that is not a regular file (a device, a FIFO) is written
+-- through, never replaced. A name is written so that the format's reader gives it back: escaped in
 -- YAML (double quotes) and Lua (`\ddd`); a YAML name must be UTF-8 text.
 --
 -- Errors are `nil, "path:LINE: reason"`.
@@ -307,7 +308,8 @@ end
 
 --- Write a layout file, in the format its extension names, whole or not at all: the text is
 -- made first (`encode`), then written to a temporary file renamed onto `path`
--- (`tagpose.formats.output`); on any failure the old file is left as it was.
+-- (`tagpose.formats.output`); on any failure the old file is left as it was. A path that is
+-- not a regular file (a device, a FIFO, a pipe) is written through, in place.
 -- @tparam string path
 -- @tparam table tags a read layout
 -- @tparam[opt] string name the layout's name

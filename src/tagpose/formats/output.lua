@@ -1,7 +1,9 @@
---- Files written whole or not at all: every file tagpose writes goes to a temporary file
--- beside its target and is renamed onto it once everything was written and closed, so that a
--- failure at any point (a full disk, an error in the data, a killed process) leaves the old
--- file as it was.
+--- Files written whole or not at all, and streams written through: every file tagpose writes
+-- goes to a temporary file beside its target and is renamed onto it once everything was
+-- written and closed, so that a failure at any point (a full disk, an error in the data, a
+-- killed process) leaves the old file as it was; a target that is not a regular file (a
+-- device such as /dev/null, a FIFO, a pipe, a terminal, after following symbolic links) is
+-- written through, in place: it is opened once and written, never replaced.
 --
 -- * The temporary file is in the target's directory (a rename within one file system
 --   replaces the target at once), named `.NAME.tagpose-XXXXXXXX.tmp` after the target, with a
@@ -13,6 +15,36 @@
 --   replaced by the file, not followed, and the new file has the permissions of a new file.
 -- * Where a rename cannot replace an existing file (Windows), the old file is first renamed
 --   aside and put back if the new one cannot take its place.
+--
+-- Which targets are written through. Pure Lua has no `stat`, and a target is never opened for
+-- reading (a FIFO would block until a writer came, and a probe read would wait on a pipe or
+-- a terminal for ever), so the kind is told with what `io.open` and `seek` say:
+--
+-- * `io.open(PATH .. "/")` resolves the path, links followed, without opening what it names:
+--   it opens a directory (refused), says "Not a directory" of anything else that exists and
+--   "No such file" of a new name (then confirmed with a plain open, for systems where a
+--   trailing slash says nothing: Windows, which has no FIFOs).
+-- * An existing target is opened once, in append mode (`"ab"`: never truncated, never
+--   created), and asked to seek to byte 1. A regular file goes there; a FIFO, a pipe, a
+--   terminal or a socket cannot seek, and Linux keeps /dev/null, /dev/zero and /dev/full at 0
+--   (measured on Lua 5.1 to 5.4 and LuaJIT). A regular file is closed unwritten and takes the
+--   temporary file's route; anything else is written through that one handle (so that a
+--   FIFO's reader sees one writer, opened once, and its end of file when it is closed).
+--   Not `"wb"`: it would empty a regular file before it is known to be one. Not `"r+b"`
+--   (which does not wait on a FIFO on Linux): it makes the writer a reader too, so that with
+--   no reader what is written is lost at the close, and a reader that goes away leaves the
+--   writer waiting on a full pipe for ever instead of ending it (both measured).
+-- * A name in /dev itself (`/dev/null`, `/dev/stdout`), under `/dev/fd/` or under `/proc/` is
+--   always written through, appended to, even when it leads to a regular file
+--   (`--out /dev/stdout > poses.csv`): those names are the system's, for devices and for what
+--   a process has open, and a rename would replace the system's entry (or fail in /proc). It
+--   also covers systems whose devices seek as files do.
+--
+-- Opening a FIFO for writing waits for its reader, as any writer of a FIFO does; a reader
+-- that goes away ends the process by SIGPIPE, as it ends any Unix filter (status 141 in the
+-- shell), unless SIGPIPE is ignored: the write then fails with "Broken pipe". A device
+-- elsewhere that seeks as a file does (a block device) takes the regular file's route. A
+-- target written through is not undone by `abort` or a failure: what was written has gone.
 --
 -- And files read whole up to a size (`read_text`: a file larger is refused unread).
 --
@@ -54,38 +86,65 @@ local function reason(err, name, path)
   return path .. ": " .. err
 end
 
---- Whether a file may be written at path: nil when it may, else why not (`"PATH: reason"`).
--- An existing file must be a file that opens for writing (it is not changed); a new one needs
--- its directory.
--- @tparam string path
--- @treturn nil|string
-function M.check(path)
-  if type(path) ~= "string" or path == "" then return "output: a file name expected" end
-  local f, err, code = io.open(path, "rb")
-  if f then
-    local ok, rerr = f:read(1)
-    f:close()
-    if ok == nil and rerr then return reason(rerr, nil, path) end
-    local w, werr = io.open(path, "r+b") -- opens for writing without truncating
-    if not w then return reason(werr, path, path) end
-    w:close()
-  elseif code ~= ENOENT then
-    return reason(err, path, path)
+-- The errno of a path whose directory part names something that is not a directory (Linux,
+-- the BSDs, macOS).
+local ENOTDIR = 20
+
+-- Where the probe asks a target to seek: a regular file goes there, a device or a stream not.
+local PROBE = 1
+
+-- True for the names of the system's devices and of a process's open streams (`/dev/NAME`,
+-- `/dev/fd/N`, anything in /proc), written through whatever they lead to.
+local function is_system_name(path)
+  local p = path:gsub("//+", "/")
+  while p:find("/%./") do p = p:gsub("/%./", "/") end
+  return p:match("^/dev/[^/]+$") ~= nil or p:match("^/dev/fd/") ~= nil
+    or p:match("^/proc/") ~= nil
+end
+
+-- What the target is, without opening it for reading: `"new"`; `"file"` (a regular file that
+-- may be written); `"stream", handle` (anything else, opened in append mode: written
+-- through); or nil and why.
+local function probe(path)
+  local d, _, dcode = io.open(path .. "/", "rb")
+  if d then
+    d:close()
+    return nil, path .. ": Is a directory"
   end
-  return nil
+  if dcode ~= ENOTDIR then
+    -- nothing there (or a system where a trailing slash says nothing: no FIFOs there)
+    local f, err, code = io.open(path, "rb")
+    if not f then
+      if code == ENOENT then return "new" end
+      return nil, reason(err, path, path)
+    end
+    f:close()
+  end
+  local w, werr = io.open(path, "ab") -- it exists: neither truncated nor created
+  if not w then return nil, reason(werr, path, path) end
+  if not is_system_name(path) and w:seek("set", PROBE) == PROBE then
+    w:close()
+    return "file"
+  end
+  return "stream", w
 end
 
 local Output = {}
 Output.__index = Output
 
---- Open a file to be written whole: its temporary file is created now.
+--- Open a file to be written whole: its temporary file is created now; a target that is not
+-- a regular file is opened to be written through.
 -- @tparam string path the target
 -- @treturn table the output: `write(...)` (strings, as `file:write`), `commit()`, `abort()`,
---   `path`, `temporary`
+--   `path`, `temporary` (nil when written through), `through` (true when written through)
 -- @return nil, string `"PATH: reason"` when it cannot be written
 function M.open(path)
-  local why = M.check(path)
-  if why then return nil, why end
+  if type(path) ~= "string" or path == "" then return nil, "output: a file name expected" end
+  local kind, handle = probe(path)
+  if not kind then return nil, handle end
+  if kind == "stream" then
+    return setmetatable({ path = path, f = handle, through = true, err = nil }, Output)
+  end
   local dir, name = path:match("^(.*[/\\])([^/\\]*)$")
   if not dir then dir, name = "", path end
   local tmp, f, err
@@ -113,13 +172,14 @@ function Output:write(...)
   end
   local ok, err = self.f:write(...)
   if not ok then
-    self.err = reason(err, self.temporary, self.path)
+    self.err = reason(err, self.temporary or self.path, self.path)
     return nil, self.err
   end
   return true
 end
 
---- Close and remove the temporary file; the target is left as it was.
+--- Close and remove the temporary file; the target is left as it was (a target written
+-- through is closed: what was written to it has gone).
 function Output:abort()
   if self.f then
     self.f:close()
@@ -153,11 +213,29 @@ local function replace(tmp, path)
   return true
 end
 
---- Close the file and put it in place of the target.
+-- Close a target written through: the first error of a write, the flush or the close.
+local function close_through(self)
+  local f, err = self.f, self.err
+  if not f then return nil, err or (self.path .. ": already closed") end
+  self.f = nil
+  if not err then
+    local ok, ferr = f:flush()
+    if not ok then err = reason(ferr, self.path, self.path) end
+  end
+  local ok, cerr = f:close()
+  if not ok and not err then err = reason(cerr, self.path, self.path) end
+  self.err = err
+  if err then return nil, err end
+  return true
+end
+
+--- Close the file and put it in place of the target (a target written through is closed).
 -- @treturn true
 -- @return nil, string `"PATH: reason"` when anything failed (a write, the close, the rename):
---   the temporary file is removed and the target left as it was
+--   the temporary file is removed and the target left as it was (a target written through
+--   keeps what was written)
 function Output:commit()
+  if self.through then return close_through(self) end
   if not self.temporary then return nil, self.err or (self.path .. ": already closed") end
   local err = self.err
   if not err then

@@ -190,7 +190,10 @@ function M.read(path, options)
   return lazy("tagpose.formats.layout").read(path, options)
 end
 
---- Write a layout file, in the format its extension names (as `read`).
+--- Write a layout file, in the format its extension names (as `read`): whole or not at all (a
+-- temporary file beside it, renamed onto it once written); a path that is not a regular file
+-- once links are followed (a device such as /dev/null, a FIFO, a pipe) is written through, in
+-- place, never replaced.
 -- @tparam string path
 -- @tparam table layout
 -- @treturn true

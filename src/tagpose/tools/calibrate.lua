@@ -20,9 +20,10 @@
 --
 -- --out may not be an input (the log, the camera file, the nominal layout) under any name
 -- (`tagpose.tools.files`); it is checked and opened before the log is read, and written whole
--- (`tagpose.formats.output`). Exit status: 0 calibrated, 1 a file could not be read or written
--- (standard output included) or the log cannot calibrate the layout, 2 a usage error or an
--- --out that is an input.
+-- (`tagpose.formats.output`: a device, a FIFO or a pipe written through, in place). Exit
+-- status: 0 calibrated, 1 a file could not be read or written (standard output included) or
+-- the log cannot calibrate the layout, 2 a usage error or an --out that is an input; a pipe
+-- closed by its reader ends the command by SIGPIPE (Lua cannot ignore it).
 -- @module tagpose.tools.calibrate
 
 local tagpose = require("tagpose")

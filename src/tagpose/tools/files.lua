@@ -9,7 +9,9 @@
 -- file when they name the same path once `.` and `..` are resolved, or when both files exist
 -- and hold the same bytes: one file always reads the same under both names, so no case of one
 -- file is missed; two files that are byte-identical copies are then refused too (named as
--- such in the message).
+-- such in the message). That fallback opens an existing output for reading to compare it: an
+-- output that is a FIFO would wait there for a writer (Windows, where it runs, has none;
+-- `stat` never opens a file).
 --
 -- A workstation tool's helper: the library never asks the system anything.
 -- @module tagpose.tools.files

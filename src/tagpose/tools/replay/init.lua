@@ -48,9 +48,11 @@
 -- The corner log is opened first: a log that cannot be read is named before anything else.
 -- The outputs (--out, --svg) may not be inputs (the log, the camera file, a compared log) or
 -- each other, under any name (`tagpose.tools.files`: the file system's device and inode); they
--- are opened before anything is read and written whole (`tagpose.formats.output`). Exit
--- status: 0 when the log was replayed (whatever its rows gave), 1 when a file cannot be read
--- or written (standard output included), 2 on a usage error or an output that is an input.
+-- are opened before anything is read and written whole (`tagpose.formats.output`: a device, a
+-- FIFO or a pipe written through, in place). Exit status: 0 when the log was replayed
+-- (whatever its rows gave), 1 when a file cannot be read or written (standard output
+-- included), 2 on a usage error or an output that is an input; a pipe closed by its reader
+-- ends the command by SIGPIPE (Lua cannot ignore it).
 --
 -- Its parts: `tagpose.tools.replay.command` (its options, on `tagpose.tools.command`: the
 -- ways out, option readers and inputs it shares with tagpose-calibrate),
