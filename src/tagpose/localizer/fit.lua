@@ -27,6 +27,7 @@ local rotation = require("tagpose.core.rotation")
 local compat = require("tagpose.core.compat")
 
 local abs, huge, pi = math.abs, math.huge, math.pi
+local SQRT3 = math.sqrt(3)
 local atan2 = compat.atan2
 local damped_step, cayley = lsq.damped_step, lsq.cayley
 local multiply = rotation.multiply
@@ -234,14 +235,15 @@ local trial = {}
 --   (each nil: off)
 -- @tparam table pose `{r = flat robot → field rotation, t = {x, y, z}}`, replaced by the fit
 -- @tparam number sigma σ, px
+-- @tparam[opt] int iterations bound on the linearisations (default `MAX_ITERATIONS`)
 -- @treturn number the final cost (χ² of corners and priors), math.huge when the start puts a
 --   tag behind a camera
-function M.fit(obs, n, active, pr, pose, sigma)
+function M.fit(obs, n, active, pr, pose, sigma, iterations)
   local r, t = pose.r, pose.t
   local c = cost(obs, n, active, pr, r, t[1], t[2], t[3], sigma, N)
   if not (c < huge) then return huge end
   local lambda = 1e-6
-  for _ = 1, M.MAX_ITERATIONS do
+  for _ = 1, iterations or M.MAX_ITERATIONS do
     local lam, disp, d1, d2, d3, d4, d5, d6 = damped_step(N, lambda)
     if not lam then break end
     local c11, c12, c13, c21, c22, c23, c31, c32, c33 = cayley(d1, d2, d3)
@@ -322,8 +324,8 @@ local ORDER = { 4, 5, 6, 1, 2, 3 }
 -- @tparam table pr the priors
 -- @tparam table pose the fitted pose
 -- @tparam number sigma σ, px
--- @tparam table nuisance `mount_position`, `mount_angle`, `map_position` (σ: m, rad, m; 0:
---   none)
+-- @tparam table nuisance `mount_position`, `mount_angle`, `map_position`: the RMS length of
+--   each error over its three axes (m, rad, m; 0: none), each axis σ/√3
 -- @treturn {number,...} the 6×6 covariance, flat row-major, (x, y, z, rx, ry, rz)
 -- @treturn {number,...} its part from the corners' noise alone (the information's inverse)
 -- @return nil when the information is singular
@@ -357,8 +359,9 @@ function M.covariance(obs, n, active, pr, pose, sigma, nuisance)
   if not Hi then return nil end
   -- Σ_b G_b Σ_b G_bᵀ, 6×6 (lsq order)
   local S = zero({}, 36)
-  local sp, sa, sm = nuisance.mount_position or 0, nuisance.mount_angle or 0,
-    nuisance.map_position or 0
+  -- (each σ is the RMS length of the error, all three axes together: σ²/3 per axis)
+  local sp, sa, sm = (nuisance.mount_position or 0) / SQRT3, (nuisance.mount_angle or 0) / SQRT3,
+    (nuisance.map_position or 0) / SQRT3
   for _, gm in ipairs(mounts) do
     for a = 1, 6 do
       for b = 1, 6 do

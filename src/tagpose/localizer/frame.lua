@@ -18,6 +18,9 @@ local rotation = require("tagpose.core.rotation")
 
 local huge, sqrt = math.huge, math.sqrt
 
+-- linearisations of a start's fit to its own tag
+local START_ITERATIONS = 4
+
 local M = {}
 
 --- χ² gate of one tag's 8 residuals (P = 1e-4 for Gaussian corners of the given σ).
@@ -26,7 +29,7 @@ M.TAG_GATE = 31.8
 -- widens it: 1.5 `TAG_GATE`).
 M.LOO_GATE = 47.7
 --- Cost of a tag that does not agree with a start, in the start's score.
-M.CAP = 60
+M.CAP = 200
 --- χ² gate of the priors at the fit (3 or 4 residuals: P ≈ 1e-4).
 M.PRIOR_GATE = 23.5
 
@@ -80,37 +83,17 @@ local function prior_chi2(pr, pose)
   return s
 end
 
---- Solve one frame.
--- @tparam {table,...} obs observations (`tagpose.localizer.fit`), each also with `id` and
---   `starts` (the robot poses its tag alone gives: one or two)
--- @tparam int n how many
--- @tparam table pr the priors (`fit.fit`)
--- @tparam number sigma σ, px
--- @tparam table nuisance σ of the mount and map (`fit.covariance`)
--- @tparam[opt] table start a pose to start from (tried beside each tag's)
--- @treturn table|nil `{pose =, covariance = flat 6×6, used = {ids}, rejected = {{id =, why =}},
---   chi2 =, dof =}`, or nil and the rejected list when no tag can be kept
-function M.solve(obs, n, pr, sigma, nuisance, start)
-  local active = {}
-  for i = 1, n do active[i] = true end
-  local rejected = {}
-  local best, best_score = nil, huge
-  local function try(p)
-    local s = score(obs, n, active, pr, p, sigma)
-    if s < best_score then best, best_score = p, s end
-  end
-  if start then try(start) end
-  for i = 1, n do
-    for _, p in ipairs(obs[i].starts) do try(p) end
-  end
-  if not best then return nil, rejected end
-  local pose = copy_pose(best)
-  local kept = n
+-- From a pose and a set of active tags: fit, take out the worst tag past `TAG_GATE` one at a
+-- time, then (three tags or more) the worst by leave-one-out past `LOO_GATE`, then bring back a
+-- tag left out that agrees with the fit of the rest. Returns the fit's χ², the tags kept, the
+-- rejected list (ids and χ²) and each tag's leave-one-out χ² of the first round; nil when a tag
+-- falls behind a camera.
+local function refine(obs, n, active, kept, pr, pose, sigma, rejected)
   local chi2
-  -- every tag, then the worst past its gate out, one at a time
+  local loo = {}
   while true do
     chi2 = fit.fit(obs, n, active, pr, pose, sigma)
-    if not (chi2 < huge) then return nil, rejected end
+    if not (chi2 < huge) then return nil end
     local worst, worst_c = nil, M.TAG_GATE
     for i = 1, n do
       if active[i] then
@@ -121,7 +104,7 @@ function M.solve(obs, n, pr, sigma, nuisance, start)
     if not worst or kept == 1 then break end
     active[worst] = false
     kept = kept - 1
-    rejected[#rejected + 1] = { id = obs[worst].id, chi2 = worst_c }
+    rejected[#rejected + 1] = { id = obs[worst].id, chi2 = worst_c, i = worst }
   end
   -- leave-one-out: with three tags or more, what each tag adds to the fit's χ² (the χ² with it
   -- less the χ² of the fit of the others: χ²(8) for a tag that agrees, whatever its own
@@ -134,6 +117,7 @@ function M.solve(obs, n, pr, sigma, nuisance, start)
         active[i] = false
         local p = copy_pose(pose)
         local c = chi2 - fit.fit(obs, n, active, pr, p, sigma)
+        if loo[obs[i].id] == nil then loo[obs[i].id] = c end
         if c > worst_c then worst, worst_c = i, c end
         active[i] = true
       end
@@ -141,26 +125,124 @@ function M.solve(obs, n, pr, sigma, nuisance, start)
     if not worst then break end
     active[worst] = false
     kept = kept - 1
-    rejected[#rejected + 1] = { id = obs[worst].id, chi2 = worst_c }
+    rejected[#rejected + 1] = { id = obs[worst].id, chi2 = worst_c, i = worst }
     chi2 = fit.fit(obs, n, active, pr, pose, sigma)
   end
-  -- a tag left out early that agrees with the fit of the rest comes back
-  local back = false
-  for k = #rejected, 1, -1 do
-    local i
-    for j = 1, n do
-      if not active[j] and obs[j].id == rejected[k].id then i = j end
+  -- a tag left out that agrees with the fit of the rest comes back, until none does
+  for _ = 1, n do
+    local back = false
+    for k = #rejected, 1, -1 do
+      local i = rejected[k].i
+      if i and fit.tag_cost(obs[i], pose.r, pose.t[1], pose.t[2], pose.t[3], sigma)
+        < M.TAG_GATE then
+        active[i], kept, back = true, kept + 1, true
+        table.remove(rejected, k)
+      end
     end
-    if i and fit.tag_cost(obs[i], pose.r, pose.t[1], pose.t[2], pose.t[3], sigma) < M.TAG_GATE then
-      active[i], kept, back = true, kept + 1, true
-      table.remove(rejected, k)
+    if not back then break end
+    chi2 = fit.fit(obs, n, active, pr, pose, sigma)
+  end
+  return chi2, kept, loo
+end
+
+--- Solve one frame. Two ways from the best start: every tag fitted together, then the
+-- disagreeing ones out; and the tags that agree with the start alone, then those that agree
+-- with their fit (a phantom detection drags a joint fit until the real tags look worse than
+-- it; a far tag's start can disagree with a near one that fits it well). The one that keeps
+-- more tags wins, then the lower χ².
+-- @tparam {table,...} obs observations (`tagpose.localizer.fit`), each also with `id` and
+--   `starts` (the robot poses its tag alone gives: one or two)
+-- @tparam int n how many
+-- @tparam table pr the priors (`fit.fit`)
+-- @tparam number sigma σ, px
+-- @tparam table nuisance σ of the mount and map (`fit.covariance`)
+-- @tparam[opt] table start a pose to start from (tried beside each tag's)
+-- @tparam[opt] table distrust `{[id] = why}`: tags left out whatever they show
+-- @treturn table|nil `{pose =, covariance = flat 6×6, noise = its corners' share, used = {ids},
+--   rejected = {{id =, why =}}, chi2 =, kept =, loo = {[id] = χ² added}}`, or nil and the
+--   rejected list when no tag can be kept
+function M.solve(obs, n, pr, sigma, nuisance, start, distrust)
+  local active, eligible = {}, {}
+  local fixed = {}
+  local kept = 0
+  for i = 1, n do
+    local why = distrust and distrust[obs[i].id]
+    active[i], eligible[i] = not why, not why
+    if why then
+      fixed[#fixed + 1] = { id = obs[i].id, why = why }
+    else
+      kept = kept + 1
     end
   end
-  if back then chi2 = fit.fit(obs, n, active, pr, pose, sigma) end
+  if kept == 0 then return nil, fixed end
+  local best, best_score = nil, huge
+  local function try(p)
+    local s = score(obs, n, active, pr, p, sigma)
+    if s < best_score then best, best_score = p, s end
+  end
+  if start then try(start) end
+  -- each tag's starts, first fitted to that tag with the priors (a lone tag's pose is off the
+  -- floor and tilted by its noise, which would count against the right one)
+  local alone = {}
+  for i = 1, n do
+    if active[i] then
+      alone[i] = true
+      for _, p0 in ipairs(obs[i].starts) do
+        local p = copy_pose(p0)
+        if fit.fit(obs, n, alone, pr, p, sigma, START_ITERATIONS) < huge then try(p) end
+      end
+      alone[i] = nil
+    end
+  end
+  if not best then return nil, fixed end
+  -- every tag
+  local pose = copy_pose(best)
+  local rejected = {}
+  local chi2, nkept, loo = refine(obs, n, active, kept, pr, pose, sigma, rejected)
+  -- the tags that agree with the start
+  local agree, count = {}, 0
+  for i = 1, n do
+    agree[i] = eligible[i] and fit.tag_cost(obs[i], best.r, best.t[1], best.t[2], best.t[3],
+      sigma) < M.CAP
+    if agree[i] then count = count + 1 end
+  end
+  if count > 0 and count < kept and (not chi2 or nkept < count) then
+    local p2 = copy_pose(best)
+    local rej2 = {}
+    for i = 1, n do
+      if eligible[i] and not agree[i] then
+        rej2[#rej2 + 1] = { id = obs[i].id, chi2 = fit.tag_cost(obs[i], best.r, best.t[1],
+          best.t[2], best.t[3], sigma), i = i }
+      end
+    end
+    -- (grown: the tags that agree, within `CAP`, with the fit of those that agree)
+    for _ = 1, n do
+      if not (fit.fit(obs, n, agree, pr, p2, sigma) < huge) then break end
+      local more = false
+      for k = #rej2, 1, -1 do
+        local i = rej2[k].i
+        if fit.tag_cost(obs[i], p2.r, p2.t[1], p2.t[2], p2.t[3], sigma) < M.CAP then
+          agree[i], count, more = true, count + 1, true
+          table.remove(rej2, k)
+        end
+      end
+      if not more then break end
+    end
+    local c2, k2, l2 = refine(obs, n, agree, count, pr, p2, sigma, rej2)
+    -- (a solution the priors refuse loses to one they take)
+    local ok1 = chi2 and prior_chi2(pr, pose) <= M.PRIOR_GATE
+    local ok2 = c2 and prior_chi2(pr, p2) <= M.PRIOR_GATE
+    if c2 and (not chi2 or (ok2 and not ok1) or (ok2 == ok1 and (k2 > nkept
+      or (k2 == nkept and c2 < chi2)))) then
+      chi2, nkept, loo, pose, rejected, active = c2, k2, l2, p2, rej2, agree
+    end
+  end
+  if not chi2 then return nil, fixed end
   for _, r in ipairs(rejected) do
     r.why = ("disagrees with the other tags (χ² %.0f over its 8 residuals)"):format(r.chi2)
-    r.chi2 = nil
+    r.chi2, r.i = nil, nil
   end
+  for _, r in ipairs(fixed) do rejected[#rejected + 1] = r end
   local pc = prior_chi2(pr, pose)
   if pc > M.PRIOR_GATE then
     for i = 1, n do
@@ -178,7 +260,7 @@ function M.solve(obs, n, pr, sigma, nuisance, start)
     if active[i] then used[#used + 1] = obs[i].id end
   end
   return { pose = pose, covariance = cov, noise = noise, used = used, rejected = rejected,
-    chi2 = chi2, kept = kept, active = active }
+    chi2 = chi2, kept = nkept, active = active, loo = loo }
 end
 
 --- The robot poses a tag alone gives, from the camera-frame poses of `tagpose.solve`.

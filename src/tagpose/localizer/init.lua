@@ -57,6 +57,16 @@ local KEYS = {}
 for k in pairs(M.DEFAULTS) do KEYS[#KEYS + 1] = k end
 table.sort(KEYS)
 
+--- A tag is left out once what it adds to the frames' fits (χ²(8) for a tag where the map says,
+-- 8 on average) averages more than this...
+M.DISTRUST = 30
+--- ... over this many frames at least (an average over the last so many).
+M.DISTRUST_FRAMES = 20
+--- Weight of the past in the bias a frame's mount and map carry, per frame (0.97: the last
+-- ~30 frames, half a second of two cameras).
+M.BIAS_MEMORY = 0.97
+--- The gyro's rate is taken over this many seconds at least.
+M.RATE_BASE = 0.03
 --- σ (px) of the corners until the frames' residuals tell.
 M.DEFAULT_SIGMA = 0.5
 
@@ -200,6 +210,8 @@ function Localizer:reset_state()
     gyro_rate = 0,
     last_time = false, -- the filter's time (the last odometry sample's, or frame's)
     sse = 0, dof = 0, -- the residuals' sums, for σ
+    tag_stats = {}, -- by tag id: {mean of what it adds to a fit's χ², frames}
+    distrust = {}, -- by tag id: why it is left out
   }
   self.state = s
 end
@@ -208,6 +220,15 @@ local function copy_state(s)
   local c = {}
   for k, v in pairs(s) do c[k] = v end
   if s.filter then c.filter = s.filter:copy() end
+  -- (the tag statistics are replaced, never changed in place, entry by entry)
+  local st = {}
+  for k, v in pairs(s.tag_stats) do st[k] = v end
+  c.tag_stats = st
+  if s.bias then
+    local b = {}
+    for k, v in pairs(s.bias) do b[k] = { v[1], v[2], v[3], v[4] } end
+    c.bias = b
+  end
   return c
 end
 
@@ -226,11 +247,18 @@ local function process_gyro(self, t, yaw)
   local g = s.gyro
   if g then
     local u = g[2] + wrap(yaw - g[3])
-    local dt = t - g[1]
-    if dt > 0 then s.gyro_rate = (u - g[2]) / dt end
     s.gyro = { t, u, yaw }
+    -- the rate over `RATE_BASE` seconds at least: two samples' noise over 10 ms would add more
+    -- to a heading extrapolated by it than the rate's own change
+    local b = s.gyro_base
+    local dt = t - b[1]
+    if dt >= M.RATE_BASE then
+      s.gyro_rate = (u - b[2]) / dt
+      s.gyro_base = { t, u }
+    end
   else
     s.gyro = { t, yaw, yaw }
+    s.gyro_base = { t, yaw }
   end
 end
 
@@ -256,10 +284,13 @@ local function process_odometry(self, t, x, y, yaw)
   end
 end
 
+local lazy_tagpose -- tagpose itself (required here: it requires this module on demand)
+
 -- The observations of a frame's detections of map tags, and the detections that are not.
 local function observations(self, cam, detections, s, pr)
   local obs, rejected = {}, {}
-  local tagpose = require("tagpose")
+  local tagpose = lazy_tagpose or require("tagpose")
+  lazy_tagpose = tagpose
   local opencv = self.options.order == "opencv"
   local px = {}
   for i = 1, #detections do
@@ -348,6 +379,43 @@ local function sigma_of(self)
   return sqrt((8 * d * d + s.sse) / (8 + s.dof))
 end
 
+-- The fused estimate at time t (gyro reading g): the filter moved by the odometry since its
+-- time, the roll and pitch of r (or none), and its covariance: the filter's, the bias the
+-- frames' mounts and map carry (`Σ_c (w_c / W)²` times camera c's mean, the cameras' mounts
+-- being independent), the priors' σ for z, roll and pitch.
+local function estimate(self, t, name, g, r, used, rejected)
+  local s, o = self.state, self.options
+  local f = s.filter
+  local yaw = g - f.c
+  local dx, dy = ahead(s, t, yaw)
+  local P, NS = f.P, f.n
+  local cov = {}
+  for i = 1, 36 do cov[i] = 0 end
+  local function set(i, j, v) cov[(i - 1) * 6 + j], cov[(j - 1) * 6 + i] = v, v end
+  local b11, b12, b22, wt = 0, 0, 0, 0
+  local bias = s.bias or {}
+  for c = 1, self.ncameras do
+    if bias[c] then wt = wt + bias[c][4] end
+  end
+  if wt > 0 then
+    for c = 1, self.ncameras do
+      local e = bias[c]
+      if e then
+        local k = e[4] / (wt * wt)
+        b11, b12, b22 = b11 + k * e[1], b12 + k * e[2], b22 + k * e[3]
+      end
+    end
+  end
+  local h1, h2, h3 = f:heading_cov()
+  set(1, 1, P[1] + b11); set(1, 2, P[2] + b12); set(2, 2, P[NS + 2] + b22)
+  set(1, 6, h1); set(2, 6, h2); set(6, 6, h3 + o.gyro_sigma ^ 2)
+  set(3, 3, o.floor_sigma ^ 2 + 1e-12)
+  set(4, 4, o.tilt_sigma ^ 2 + 1e-12); set(5, 5, o.tilt_sigma ^ 2 + 1e-12)
+  local res = result(t, name, with_yaw(r, yaw), { f.x + dx, f.y + dy, 0 }, cov, used, rejected)
+  res.gyro_offset = f.c
+  return res
+end
+
 local function process_frame(self, name, detections, t)
   local s = self.state
   local o = self.options
@@ -378,8 +446,33 @@ local function process_frame(self, name, detections, t)
   local nuisance = { mount_position = o.mount_position_sigma, mount_angle = o.mount_angle_sigma,
     map_position = o.map_sigma }
   local sol, rej = nil, {}
-  if #obs > 0 then sol, rej = frame.solve(obs, #obs, pr, sigma, nuisance, start) end
-  for _, r in ipairs(rej or {}) do rejected[#rejected + 1] = r end
+  if #obs > 0 then
+    sol, rej = frame.solve(obs, #obs, pr, sigma, nuisance, start, s.distrust)
+  end
+  if sol then
+    -- what each tag adds to the fits of the frames it is in with two others, averaged: a tag
+    -- the map puts elsewhere than it is adds more, frame after frame, and is then left out
+    local st, changed = s.tag_stats, false
+    for id, d in pairs(sol.loo) do
+      local e = st[id]
+      local m, k = e and e[1] or 0, e and e[2] or 0
+      k = k + 1
+      local w = k < M.DISTRUST_FRAMES and 1 / k or 1 / M.DISTRUST_FRAMES
+      st[id] = { m + w * (d - m), k }
+      changed = true
+    end
+    if changed then
+      local distrust = {}
+      for id, e in pairs(st) do
+        if e[2] >= M.DISTRUST_FRAMES and e[1] > M.DISTRUST then
+          distrust[id] = ("its place on the map disagrees with the other tags (%.0f on average "
+            .. "over %d frames)"):format(e[1], e[2])
+        end
+      end
+      s.distrust = distrust
+    end
+  end
+  for _, r in ipairs(sol and sol.rejected or rej or {}) do rejected[#rejected + 1] = r end
   if sol and not o.sigma then
     -- the residuals' share of σ: the pixel part of χ² (priors aside, roughly), forgetting slowly
     local k = sol.kept
@@ -422,46 +515,35 @@ local function process_frame(self, name, detections, t)
   local accepted = false
   if sol then
     local C = sol.covariance
-    local R = { C[1], C[2], C[6], C[7], C[8], C[12], C[31], C[32], C[36] }
+    -- (the heading is compared with the gyro's: its noise adds to the frame's)
+    local R = { C[1], C[2], C[6], C[7], C[8], C[12], C[31], C[32], C[36] + o.gyro_sigma ^ 2 }
     accepted = f:update(cam.index, sol.pose.t[1], sol.pose.t[2], fit.yaw(sol.pose.r), R, g, dx,
       dy, sol.kept >= 2)
     if accepted then
       -- the mount's and map's share of the frames' position (a bias the filter cannot average
-      -- away), weighted as the frames weigh in the estimate: by their information
+      -- away), per camera (their mounts' errors are independent), weighted as the frames weigh
+      -- in the estimate: by their information, forgetting with `BIAS_MEMORY`
       local W = sol.noise
       local w = 1 / (C[1] + C[8])
-      local b = s.bias or { 0, 0, 0, 0 }
-      local a = 0.97
-      b[1] = a * b[1] + w * (C[1] - W[1])
-      b[2] = a * b[2] + w * (C[2] - W[2])
-      b[3] = a * b[3] + w * (C[8] - W[8])
-      b[4] = a * b[4] + w
-      s.bias = b
+      local all = s.bias or {}
+      local a = M.BIAS_MEMORY
+      for _, e in pairs(all) do
+        e[1], e[2], e[3], e[4] = a * e[1], a * e[2], a * e[3], a * e[4]
+      end
+      local b = all[cam.index] or { 0, 0, 0, 0 }
+      b[1], b[2], b[3], b[4] = b[1] + w * (C[1] - W[1]), b[2] + w * (C[2] - W[2]),
+        b[3] + w * (C[8] - W[8]), b[4] + w
+      all[cam.index] = b
+      s.bias = all
     else
       for _, id in ipairs(sol.used) do
         rejected[#rejected + 1] = { id = id, why = "the frame disagrees with the estimate" }
       end
     end
   end
-  local yaw = g - f.c
-  dx, dy = ahead(s, t, yaw)
-  local r = with_yaw(accepted and sol.pose.r or nil, yaw)
-  local P = f.P
-  local cov = {}
-  for i = 1, 36 do cov[i] = 0 end
-  local function set(i, j, v) cov[(i - 1) * 6 + j], cov[(j - 1) * 6 + i] = v, v end
-  local b = s.bias
-  local b11, b12, b22 = 0, 0, 0
-  if b and b[4] > 0 then b11, b12, b22 = b[1] / b[4], b[2] / b[4], b[3] / b[4] end
-  local NS = f.n
-  local h1, h2, h3 = f:heading_cov()
-  set(1, 1, P[1] + b11); set(1, 2, P[2] + b12); set(2, 2, P[NS + 2] + b22)
-  set(1, 6, h1); set(2, 6, h2); set(6, 6, h3 + o.gyro_sigma ^ 2)
-  set(3, 3, o.floor_sigma ^ 2 + 1e-12)
-  set(4, 4, o.tilt_sigma ^ 2 + 1e-12); set(5, 5, o.tilt_sigma ^ 2 + 1e-12)
-  local used = accepted and sol.used or {}
-  local res = result(t, name, r, { f.x + dx, f.y + dy, 0 }, cov, used, rejected)
-  res.gyro_offset, res.accepted = f.c, accepted
+  local res = estimate(self, t, name, g, accepted and sol.pose.r or nil,
+    accepted and sol.used or {}, rejected)
+  res.accepted = accepted
   return res
 end
 
@@ -563,7 +645,8 @@ function Localizer:update(camera, detections, time)
     local names = {}
     for k in pairs(self.cameras) do names[#names + 1] = tostring(k) end
     table.sort(names)
-    args.raise(1, "update", "unknown camera " .. describe(camera) .. " (cameras: "
+    args.raise(1, "update", "unknown camera " .. (type(camera) == "string"
+      and ("%q"):format(camera) or describe(camera)) .. " (cameras: "
       .. table.concat(names, ", ") .. ")", 2)
   end
   if type(detections) ~= "table" then
@@ -583,23 +666,8 @@ end
 function Localizer:pose(time)
   check_time(time, 1, "pose")
   local s = self.state
-  local f = s.filter
-  if not f then return nil end
-  local g = heading(s, time)
-  local yaw = g - f.c
-  local dx, dy = ahead(s, time, yaw)
-  local P, NS = f.P, f.n
-  local cov = {}
-  for i = 1, 36 do cov[i] = 0 end
-  local h1, h2, h3 = f:heading_cov()
-  cov[1], cov[2], cov[7], cov[8] = P[1], P[2], P[2], P[NS + 2]
-  cov[6], cov[31], cov[12], cov[32] = h1, h1, h2, h2
-  cov[36] = h3 + self.options.gyro_sigma ^ 2
-  cov[15] = self.options.floor_sigma ^ 2 + 1e-12
-  cov[22], cov[29] = self.options.tilt_sigma ^ 2 + 1e-12, self.options.tilt_sigma ^ 2 + 1e-12
-  local res = result(time, nil, with_yaw(nil, yaw), { f.x + dx, f.y + dy, 0 }, cov, {}, {})
-  res.gyro_offset = f.c
-  return res
+  if not s.filter then return nil end
+  return estimate(self, time, nil, heading(s, time), nil, {}, {})
 end
 
 return M
