@@ -51,6 +51,7 @@ M.DEFAULTS = {
   map_sigma = 0.01, -- the tags' places, m
   history = 1.0, -- how late data may arrive, s
   order = "detector", -- or "opencv"
+  map_check = false, -- true: keep where each tag is seen against the map (`map_check`)
 }
 
 local KEYS = {}
@@ -134,6 +135,10 @@ local function read_options(options, n, fname, level)
         args.raise(n, fname, "options.order: \"detector\" or \"opencv\" expected, got "
           .. describe(v), level)
       end
+    elseif k == "map_check" then
+      if type(v) ~= "boolean" then
+        args.raise(n, fname, "options.map_check: boolean expected, got " .. describe(v), level)
+      end
     elseif k == "sigma" then
       if v ~= false and not args.is_positive(v) then
         args.raise(n, fname, "options.sigma: positive number (px) or false expected, got "
@@ -187,7 +192,7 @@ function M.new(map, cameras, options)
     events = {}, -- the events within `history`, in time order
     now = -huge, -- the time of the newest event processed
     warned = {},
-    checks = {}, -- the map check's sums by tag id
+    checks = {}, -- the map check's entries by tag id, then frame
   }, Localizer)
   self:reset_state()
   return self
@@ -416,6 +421,28 @@ local function estimate(self, t, name, g, r, used, rejected)
   return res
 end
 
+-- The map check: each tag seen in a frame that placed the robot, the move of its centre that
+-- explains its corners in that frame with the robot at the estimate (`fit.tag_normal`), with
+-- its information; kept by tag, frame time and camera (a frame replayed after late data
+-- replaces its own entry).
+local function check_tags(self, time, camera, obs, r, t, sigma)
+  local ch = self.checks
+  for _, ob in ipairs(obs) do
+    local A, b = { 0, 0, 0, 0, 0, 0, 0, 0, 0 }, { 0, 0, 0 }
+    if fit.tag_normal(ob, r, t[1], t[2], t[3], sigma, A, b) then
+      local Ai = fit.invert(A, 3, {})
+      if Ai then
+        local e = ch[ob.id] or {}
+        ch[ob.id] = e
+        e[("%.9g %s"):format(time, tostring(camera))] = { time = time,
+          -(Ai[1] * b[1] + Ai[2] * b[2] + Ai[3] * b[3]),
+          -(Ai[4] * b[1] + Ai[5] * b[2] + Ai[6] * b[3]),
+          -(Ai[7] * b[1] + Ai[8] * b[2] + Ai[9] * b[3]), A }
+      end
+    end
+  end
+end
+
 local function process_frame(self, name, detections, t)
   local s = self.state
   local o = self.options
@@ -493,6 +520,7 @@ local function process_frame(self, name, detections, t)
         s.offset, s.offset_var = g - yaw, C[36]
       end
     end
+    if o.map_check then check_tags(self, t, name, obs, sol.pose.r, sol.pose.t, sigma) end
     local res = result(t, name, sol.pose.r, sol.pose.t, C, sol.used, rejected)
     res.gyro_offset, res.accepted = s.offset or nil, true
     return res
@@ -540,6 +568,13 @@ local function process_frame(self, name, detections, t)
         rejected[#rejected + 1] = { id = id, why = "the frame disagrees with the estimate" }
       end
     end
+  end
+  if accepted and o.map_check then
+    local yaw = g - f.c
+    local ex, ey = ahead(s, t, yaw)
+    -- (the camera's heading error as the filter has it: its frames are seen through it)
+    check_tags(self, t, name, obs, with_yaw(sol.pose.r, yaw + f.beta[cam.index]),
+      { f.x + ex, f.y + ey, 0 }, sigma)
   end
   local res = estimate(self, t, name, g, accepted and sol.pose.r or nil,
     accepted and sol.used or {}, rejected)
@@ -658,6 +693,56 @@ function Localizer:update(camera, detections, time)
   end
   check_time(time, 3, "update")
   return feed(self, { t = time, camera = camera, detections = detections, run = run_frame })
+end
+
+--- Where each map tag was seen against where the map puts it (with `options.map_check`): for
+-- each tag seen in a frame that placed the robot, the move of its centre that explains its
+-- corners with the robot where the localizer put it; over the frames, the median of each
+-- coordinate, then the frames within 5σ of it (by each frame's own information, a phantom
+-- detection's far outside) averaged by their information. Field frame, largest first.
+-- @treturn {table,...} `{id =, dx =, dy =, dz =, distance =, frames =}` each
+function Localizer:map_check()
+  local out = {}
+  for id, entries in pairs(self.checks) do
+    local list = {}
+    for _, e in pairs(entries) do list[#list + 1] = e end
+    table.sort(list, function(a, b) return a.time < b.time end)
+    local med = {}
+    for k = 1, 3 do
+      local v = {}
+      for i, e in ipairs(list) do v[i] = e[k] end
+      table.sort(v)
+      local m = #v
+      med[k] = m % 2 == 1 and v[(m + 1) / 2] or 0.5 * (v[m / 2] + v[m / 2 + 1])
+    end
+    local A, b, used = { 0, 0, 0, 0, 0, 0, 0, 0, 0 }, { 0, 0, 0 }, 0
+    for _, e in ipairs(list) do
+      local W = e[4]
+      local d1, d2, d3 = e[1] - med[1], e[2] - med[2], e[3] - med[3]
+      local m2 = d1 * (W[1] * d1 + W[2] * d2 + W[3] * d3) + d2 * (W[4] * d1 + W[5] * d2
+        + W[6] * d3) + d3 * (W[7] * d1 + W[8] * d2 + W[9] * d3)
+      if m2 < 25 then
+        for k = 1, 9 do A[k] = A[k] + W[k] end
+        for k = 1, 3 do
+          b[k] = b[k] + W[3 * k - 2] * e[1] + W[3 * k - 1] * e[2] + W[3 * k] * e[3]
+        end
+        used = used + 1
+      end
+    end
+    local Ai = used > 0 and fit.invert(A, 3, {})
+    if Ai then
+      local dx = Ai[1] * b[1] + Ai[2] * b[2] + Ai[3] * b[3]
+      local dy = Ai[4] * b[1] + Ai[5] * b[2] + Ai[6] * b[3]
+      local dz = Ai[7] * b[1] + Ai[8] * b[2] + Ai[9] * b[3]
+      out[#out + 1] = { id = id, dx = dx, dy = dy, dz = dz,
+        distance = sqrt(dx * dx + dy * dy + dz * dz), frames = used }
+    end
+  end
+  table.sort(out, function(a, b)
+    if a.distance ~= b.distance then return a.distance > b.distance end
+    return a.id < b.id
+  end)
+  return out
 end
 
 --- The estimate at a time at or after the newest frame (the filter moved by the odometry).

@@ -15,8 +15,8 @@
 -- --gyro       time,yaw: the gyro's heading, radians (any offset: it is learnt from the tags)
 -- --single     each frame that saw a map tag alone, with the gyro and the floor as priors
 --              (no odometry; the gyro's offset learnt from the frames before it)
--- --map-check  where each map tag was seen against where the map puts it:
---              tag,dx,dy,dz,distance,frames (field frame, m), largest first
+-- --map-check  where each map tag was seen against where the map puts it (the localizer's
+--              `map_check`): tag,dx,dy,dz,distance,frames (field frame, m), largest first
 -- --out        time,camera,x,y,z,qw,qx,qy,qz,sx,sy,syaw,c11..c66,tags,rejected: one row per
 --              camera frame (the fused mode: every frame once the robot is placed; --single:
 --              every frame answered), the robot → field pose, σ of x, y and yaw, the 6×6
@@ -157,63 +157,6 @@ local function read_cameras(path)
   return data
 end
 
--- The map check's rows: for each tag seen in a frame that placed the robot (with the tag
--- itself left out of that frame's fit only by the test), the tag's centre as the camera saw
--- it (`tagpose.solve`'s pose on the branch nearer the map's turn) through the estimate and the
--- mount, against the map's; weighted by 1 / distance² (a far tag's depth is the least sure).
-local function map_check_rows(sums)
-  local rows = {}
-  for id, s in pairs(sums) do
-    local w = s.w
-    local dx, dy, dz = s.x / w, s.y / w, s.z / w
-    rows[#rows + 1] = { id = id, dx = dx, dy = dy, dz = dz,
-      d = math.sqrt(dx * dx + dy * dy + dz * dz), n = s.n }
-  end
-  table.sort(rows, function(a, b)
-    if a.d ~= b.d then return a.d > b.d end
-    return a.id < b.id
-  end)
-  return rows
-end
-
-local function check_tag(loc, sums, res, fr)
-  if not (res and res.position and res.accepted) then return end
-  local cam = loc.cameras[fr.camera]
-  local rotation = require("tagpose.core.rotation")
-  local R = rotation.from_nested(res.rotation, {})
-  local t = res.position
-  for _, d in ipairs(fr.detections) do
-    local tag = loc.tags[d.id]
-    if tag then
-      local p = tagpose.solve(d.corners, cam.intr, tag.size)
-      if p then
-        -- the branch whose turn is nearer the map's
-        local best, best_a = nil, math.huge
-        for _, q in ipairs({ p, p.alternative }) do
-          local rc = rotation.from_nested(q.rotation, {})
-          local rf = rotation.multiply(R, rotation.multiply(cam.mount.r, rc, {}), {})
-          local a = rotation.angle(rf, tag.r)
-          if a < best_a then best, best_a = q, a end
-        end
-        local c = best.position
-        local m, mt = cam.mount.r, cam.mount.t
-        local rx = m[1] * c.x + m[2] * c.y + m[3] * c.z + mt[1]
-        local ry = m[4] * c.x + m[5] * c.y + m[6] * c.z + mt[2]
-        local rz = m[7] * c.x + m[8] * c.y + m[9] * c.z + mt[3]
-        local fx = R[1] * rx + R[2] * ry + R[3] * rz + t.x
-        local fy = R[4] * rx + R[5] * ry + R[6] * rz + t.y
-        local fz = R[7] * rx + R[8] * ry + R[9] * rz + t.z
-        local dist2 = c.x * c.x + c.y * c.y + c.z * c.z
-        local w = 1 / dist2
-        local s = sums[d.id] or { x = 0, y = 0, z = 0, w = 0, n = 0 }
-        sums[d.id] = s
-        s.x, s.y, s.z = s.x + w * (fx - tag.x), s.y + w * (fy - tag.y), s.z + w * (fz - tag.z)
-        s.w, s.n = s.w + w, s.n + 1
-      end
-    end
-  end
-end
-
 local function row_text(fr, res)
   local p, q, s = res.position, res.quaternion, res.sigma
   local parts = { format("%.6f,%s,%.6f,%.6f,%.6f,%.9f,%.9f,%.9f,%.9f,%.6g,%.6g,%.6g", fr.t,
@@ -262,7 +205,7 @@ local function run(argv, open)
   local map, merr = tagpose.layout.read(opt.map, size and { size = size } or nil)
   if not map then fail(merr) end
   local ok, loc = pcall(tagpose.localizer.new, map, cameras,
-    { mode = opt.single and "single" or "fused" })
+    { mode = opt.single and "single" or "fused", map_check = opt.map_check ~= nil })
   if not ok then fail(opt.cameras .. ": " .. tostring(loc):gsub("^bad argument #%d to 'new' %(",
     ""):gsub("%)$", "")) end
   local frames = read_frames(opt.corners, loc.cameras)
@@ -271,7 +214,6 @@ local function run(argv, open)
   local gyro = opt.gyro and in_order(opt.gyro, read_table(opt.gyro, { "time", "yaw" })) or {}
   -- merged in time order: at one time the odometry, the gyro, then the frames
   local i, j = 1, 1
-  local sums = {}
   out:write(header(), "\n")
   local rows = 0
   for _, fr in ipairs(frames) do
@@ -292,12 +234,12 @@ local function run(argv, open)
       out:write(row_text(fr, res), "\n")
       rows = rows + 1
     end
-    if check then check_tag(loc, sums, res, fr) end
   end
   if check then
     check:write("tag,dx,dy,dz,distance,frames\n")
-    for _, r in ipairs(map_check_rows(sums)) do
-      check:write(format("%d,%.4f,%.4f,%.4f,%.4f,%d\n", r.id, r.dx, r.dy, r.dz, r.d, r.n))
+    for _, r in ipairs(loc:map_check()) do
+      check:write(format("%d,%.4f,%.4f,%.4f,%.4f,%d\n", r.id, r.dx, r.dy, r.dz, r.distance,
+        r.frames))
     end
     check:commit()
   end
