@@ -425,16 +425,17 @@ function M.covariance(obs, n, active, pr, pose, sigma, nuisance)
       end
     end
   end
-  if sm > 0 then
-    for i = 1, n do
-      if active[i] then
-        local gp = obs[i].gtag
-        for a = 1, 6 do
-          for b = 1, 6 do
-            local s = 0
-            for c = 1, 3 do s = s + gp[(a - 1) * 3 + c] * gp[(b - 1) * 3 + c] end
-            S[(a - 1) * 6 + b] = S[(a - 1) * 6 + b] + s * sm * sm
-          end
+  for i = 1, n do
+    -- (an observation may carry its own: a tag whose place is in doubt)
+    local o = obs[i]
+    local si = o.map_sigma and o.map_sigma / SQRT3 or sm
+    if active[i] and si > 0 then
+      local gp = o.gtag
+      for a = 1, 6 do
+        for b = 1, 6 do
+          local s = 0
+          for c = 1, 3 do s = s + gp[(a - 1) * 3 + c] * gp[(b - 1) * 3 + c] end
+          S[(a - 1) * 6 + b] = S[(a - 1) * 6 + b] + s * si * si
         end
       end
     end

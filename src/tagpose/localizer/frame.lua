@@ -244,6 +244,28 @@ function M.solve(obs, n, pr, sigma, nuisance, start, distrust)
   end
   for _, r in ipairs(fixed) do rejected[#rejected + 1] = r end
   local pc = prior_chi2(pr, pose)
+  -- the priors refuse the fit of several tags: the one without which they take it, if any (a
+  -- tag off its map place tilts or lifts the robot to fit)
+  while pc > M.PRIOR_GATE and nkept >= 2 do
+    local best_i, best_c, best_p
+    for i = 1, n do
+      if active[i] then
+        active[i] = false
+        local p = copy_pose(pose)
+        local c = fit.fit(obs, n, active, pr, p, sigma)
+        if c < huge and prior_chi2(pr, p) <= M.PRIOR_GATE and (not best_c or c < best_c) then
+          best_i, best_c, best_p = i, c, p
+        end
+        active[i] = true
+      end
+    end
+    if not best_i then break end
+    active[best_i] = false
+    nkept, chi2, pose = nkept - 1, best_c, best_p
+    rejected[#rejected + 1] = { id = obs[best_i].id,
+      why = ("with it the floor, gravity or heading priors disagree (χ² %.0f)"):format(pc) }
+    pc = prior_chi2(pr, pose)
+  end
   if pc > M.PRIOR_GATE then
     for i = 1, n do
       if active[i] then

@@ -68,6 +68,9 @@ M.DISTRUST_FRAMES = 20
 M.BIAS_MEMORY = 0.97
 --- The gyro's rate is taken over this many seconds at least.
 M.RATE_BASE = 0.03
+--- The RMS size of the error of a left-out tag's place, when single mode answers from such
+-- tags alone (m): the size of the moves that make a tag left out.
+M.DOUBT = 0.15
 --- σ (px) of the corners until the frames' residuals tell.
 M.DEFAULT_SIGMA = 0.5
 
@@ -473,8 +476,28 @@ local function process_frame(self, name, detections, t)
   local nuisance = { mount_position = o.mount_position_sigma, mount_angle = o.mount_angle_sigma,
     map_position = o.map_sigma }
   local sol, rej = nil, {}
+  local doubtful = false
   if #obs > 0 then
     sol, rej = frame.solve(obs, #obs, pr, sigma, nuisance, start, s.distrust)
+    if not sol and pr.yaw and #obs >= 2 then
+      -- single mode: tags enough to tell the heading without the gyro; when the heading the
+      -- offset learnt so far gives is what they refuse, the offset is learnt again from them
+      local free = { sigma_z = pr.sigma_z, sigma_tilt = pr.sigma_tilt }
+      local sol2, rej2 = frame.solve(obs, #obs, free, sigma, nuisance, start, s.distrust)
+      if sol2 and sol2.kept >= 2 then
+        sol, rej, s.offset = sol2, rej2, false
+      end
+    end
+    if not sol and o.mode == "single" and next(s.distrust) then
+      -- single mode, only tags left out in view: answered from them all the same, their place
+      -- as uncertain as `DOUBT` (the size of the moves that make a tag left out)
+      doubtful = true
+      for _, ob in ipairs(obs) do
+        if s.distrust[ob.id] then ob.map_sigma = M.DOUBT end
+      end
+      sol, rej = frame.solve(obs, #obs, pr, sigma, nuisance, start)
+      if sol then sol.loo = {} end
+    end
   end
   if sol then
     -- what each tag adds to the fits of the frames it is in with two others, averaged: a tag
@@ -512,7 +535,7 @@ local function process_frame(self, name, detections, t)
     if not sol then return nil, rejected end
     local C = sol.covariance
     local yaw = fit.yaw(sol.pose.r)
-    if g then
+    if g and not doubtful then
       local var = C[36] + o.gyro_sigma ^ 2
       if not s.offset then
         if sol.kept >= 2 or C[36] < rad(2) ^ 2 then s.offset, s.offset_var = g - yaw, var end
@@ -523,6 +546,10 @@ local function process_frame(self, name, detections, t)
     if o.map_check then check_tags(self, t, name, obs, sol.pose.r, sol.pose.t, sigma) end
     local res = result(t, name, sol.pose.r, sol.pose.t, C, sol.used, rejected)
     res.gyro_offset, res.accepted = s.offset or nil, true
+    if doubtful then
+      res.warning = "only tags whose place on the map is in doubt: their places taken as "
+        .. M.DOUBT .. " m uncertain"
+    end
     return res
   end
   -- fused
