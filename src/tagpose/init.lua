@@ -39,6 +39,19 @@ local ON_DEMAND = {
   localizer = "tagpose.localizer",
 }
 
+--- The robot's pose on a map from one camera frame (`tagpose.localizer.localize`, loaded when
+-- first called): the floor, gravity and optionally the gyro's heading as priors, tags that
+-- disagree left out, the covariance, the confidence and the other minimum.
+-- @function localize
+-- @tparam {table,...} detections `{id =, corners =}` each
+-- @tparam table camera a calibration with its `mount` (camera → robot)
+-- @tparam table map a layout in the field's frame
+-- @tparam[opt] table options
+-- @treturn table|nil the robot's pose
+M.localize = function(detections, camera, map, options)
+  return require("tagpose.localizer").localize(detections, camera, map, options)
+end
+
 setmetatable(M, {
   __index = function(t, key)
     local name = ON_DEMAND[key]

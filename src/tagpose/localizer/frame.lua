@@ -285,6 +285,36 @@ function M.solve(obs, n, pr, sigma, nuisance, start, distrust)
     chi2 = chi2, kept = nkept, active = active, loo = loo }
 end
 
+--- The other minimum of a solved frame: the best fit of the same tags from the starts that
+-- land more than 5 cm or 2° from the solution.
+-- @tparam {table,...} obs
+-- @tparam int n
+-- @tparam table sol a result of `solve`
+-- @tparam table pr the priors
+-- @tparam number sigma σ, px
+-- @tparam table nuisance as for `solve`
+-- @treturn table|nil `{pose =, chi2 =, covariance =, used =}`
+function M.other(obs, n, sol, pr, sigma, nuisance)
+  local best, best_c
+  local p0 = sol.pose
+  for i = 1, n do
+    if sol.active[i] then
+      for _, st in ipairs(obs[i].starts) do
+        local p = copy_pose(st)
+        local c = fit.fit(obs, n, sol.active, pr, p, sigma)
+        local dx, dy, dz = p.t[1] - p0.t[1], p.t[2] - p0.t[2], p.t[3] - p0.t[3]
+        local far = dx * dx + dy * dy + dz * dz > 0.05 ^ 2
+          or rotation.angle(p.r, p0.r) > 0.035
+        if c < huge and far and (not best_c or c < best_c) then best, best_c = p, c end
+      end
+    end
+  end
+  if not best or prior_chi2(pr, best) > M.PRIOR_GATE then return nil end
+  local cov = fit.covariance(obs, n, sol.active, pr, best, sigma, nuisance)
+  if not cov then return nil end
+  return { pose = best, chi2 = best_c, covariance = cov, used = sol.used }
+end
+
 --- The robot poses a tag alone gives, from the camera-frame poses of `tagpose.solve`.
 -- @tparam table tag a read map tag (`tagpose.layout.model`)
 -- @tparam table mount `{r =, t =}`

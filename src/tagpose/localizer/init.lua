@@ -33,7 +33,8 @@ local camera_mod = require("tagpose.core.camera")
 local args = require("tagpose.core.args")
 local compat = require("tagpose.core.compat")
 
-local sqrt, cos, sin, rad, huge = math.sqrt, math.cos, math.sin, math.rad, math.huge
+local sqrt, cos, sin, rad, huge, exp = math.sqrt, math.cos, math.sin, math.rad, math.huge,
+  math.exp
 local wrap = fit.wrap
 local is_finite, describe = compat.is_finite, args.describe
 
@@ -66,6 +67,8 @@ M.DISTRUST_FRAMES = 20
 --- Weight of the past in the bias a frame's mount and map carry, per frame (0.97: the last
 -- ~30 frames, half a second of two cameras).
 M.BIAS_MEMORY = 0.97
+--- `localize` reports the other minimum when its χ² is within this of the best's.
+M.ALTERNATIVE_GATE = 20
 --- The gyro's rate is taken over this many seconds at least.
 M.RATE_BASE = 0.03
 --- The RMS size of the error of a left-out tag's place, when single mode answers from such
@@ -80,9 +83,10 @@ Localizer.__index = Localizer
 local CAMERA_KEYS = { "fx", "fy", "cx", "cy", "model", "distortion", "width", "height", "name" }
 
 -- A camera of the `cameras` table: its calibration for `tagpose.solve` and its mount.
-local function read_camera(name, c, level)
+local function read_camera(name, c, level, n, fname)
+  n, fname = n or 2, fname or "new"
   if type(c) ~= "table" then
-    args.raise(2, "new", "cameras." .. tostring(name) .. ": table expected, got " .. type(c),
+    args.raise(n, fname, "cameras." .. tostring(name) .. ": table expected, got " .. type(c),
       level)
   end
   local intr = {}
@@ -90,17 +94,17 @@ local function read_camera(name, c, level)
   local ok, err = pcall(camera_mod.check, intr)
   if ok and err ~= nil and err ~= true and type(err) == "string" then ok = false end
   if not ok then
-    args.raise(2, "new", "cameras." .. tostring(name) .. ": " .. tostring(err), level)
+    args.raise(n, fname, "cameras." .. tostring(name) .. ": " .. tostring(err), level)
   end
   local m = c.mount
   if type(m) ~= "table" or type(m.position) ~= "table" or type(m.quaternion) ~= "table" then
-    args.raise(2, "new", "cameras." .. tostring(name)
+    args.raise(n, fname, "cameras." .. tostring(name)
       .. ".mount: {position = {x, y, z}, quaternion = {w, x, y, z}} expected (camera → robot, m)",
       level)
   end
   local p, q = m.position, m.quaternion
   if not (is_finite(p.x) and is_finite(p.y) and is_finite(p.z)) then
-    args.raise(2, "new", "cameras." .. tostring(name) .. ".mount.position: finite x, y, z expected",
+    args.raise(n, fname, "cameras." .. tostring(name) .. ".mount.position: finite x, y, z expected",
       level)
   end
   local w, x, y, z = q.w, q.x, q.y, q.z
@@ -110,7 +114,7 @@ local function read_camera(name, c, level)
     w = nil
   end
   if not w then
-    args.raise(2, "new", "cameras." .. tostring(name)
+    args.raise(n, fname, "cameras." .. tostring(name)
       .. ".mount.quaternion: a finite, non-zero {w, x, y, z} expected", level)
   end
   return { name = name, intr = intr, fx = c.fx, fy = c.fy,
@@ -660,6 +664,87 @@ local function run_frame(self, e)
   local res, rejected = process_frame(self, e.camera, e.detections, e.t)
   if not res then res = { time = e.t, camera = e.camera, rejected = rejected } end
   e.result = res
+  return res
+end
+
+--- The robot's pose from one camera frame alone, with the floor and gravity as priors and,
+-- when given, the heading (a gyro whose offset is known to `yaw_sigma`).
+-- @tparam {table,...} detections `{id =, corners =}` each
+-- @tparam table camera a calibration with its `mount` (as `new`'s cameras)
+-- @tparam table map a layout in the field's frame
+-- @tparam[opt] table options `new`'s options (`mode` aside), and `yaw` (radians) with
+--   `yaw_sigma` (radians, default `gyro_sigma`)
+-- @treturn table|nil as `update`'s result, and `confidence` (the probability that this is the
+--   robot's pose rather than the other minimum's, from their χ²: `1 / (1 + exp(−Δχ²/2))`) and
+--   `alternative` (the other minimum's result, with the tags it used) where there is one within
+--   `ALTERNATIVE_GATE` of χ²; nil and the rejected list when no tag gives a pose
+function M.localize(detections, camera, map, options)
+  local yaw, yaw_sigma
+  if options ~= nil then
+    if type(options) ~= "table" then
+      args.raise(4, "localize", "options table expected, got " .. type(options), 2)
+    end
+    local rest = {}
+    for k, v in pairs(options) do
+      if k == "yaw" then
+        yaw = v
+      elseif k == "yaw_sigma" then
+        yaw_sigma = v
+      else
+        rest[k] = v
+      end
+    end
+    if yaw ~= nil and not is_finite(yaw) then
+      args.raise(4, "localize", "options.yaw: finite number (radians) expected, got "
+        .. describe(yaw), 2)
+    end
+    if yaw_sigma ~= nil and not args.is_positive(yaw_sigma) then
+      args.raise(4, "localize", "options.yaw_sigma: positive number (radians) expected, got "
+        .. describe(yaw_sigma), 2)
+    end
+    options = rest
+  end
+  if type(detections) ~= "table" then
+    args.raise(1, "localize", "detections: table expected, got " .. type(detections), 2)
+  end
+  if detections.corners ~= nil then
+    args.raise(1, "localize", "a list of detections expected, got one detection (pass "
+      .. "{detection})", 2)
+  end
+  local tags, err = model.read(map)
+  if not tags then args.raise(3, "localize", err, 2) end
+  local cam = read_camera("camera", camera, 3, 2, "localize")
+  cam.index = 1
+  local o = read_options(options, 4, "localize", 3)
+  local self = setmetatable({ tags = tags, cameras = { camera = cam }, ncameras = 1,
+    options = o, events = {}, now = -huge, warned = {}, checks = {} }, Localizer)
+  self:reset_state()
+  local s = self.state
+  local sigma = sigma_of(self)
+  s.sigma = sigma
+  local pr = { sigma_z = o.floor_sigma > 0 and o.floor_sigma or nil,
+    sigma_tilt = o.tilt_sigma > 0 and o.tilt_sigma or nil }
+  if yaw then pr.yaw, pr.sigma_yaw = yaw, yaw_sigma or o.gyro_sigma end
+  local obs, rejected = observations(self, cam, detections, s)
+  if #obs == 0 then return nil, rejected end
+  local nuisance = { mount_position = o.mount_position_sigma, mount_angle = o.mount_angle_sigma,
+    map_position = o.map_sigma }
+  local sol, rej = frame.solve(obs, #obs, pr, sigma, nuisance)
+  for _, r in ipairs(sol and sol.rejected or rej or {}) do rejected[#rejected + 1] = r end
+  if not sol then return nil, rejected end
+  local res = result(nil, nil, sol.pose.r, sol.pose.t, sol.covariance, sol.used, rejected)
+  res.confidence = 1
+  -- the other minimum: the best fit, from the other starts, of the same tags that lands
+  -- elsewhere (more than 5 cm or 2° away)
+  local other = frame.other(obs, #obs, sol, pr, sigma, nuisance)
+  if other and other.chi2 - sol.chi2 < M.ALTERNATIVE_GATE then
+    local d = other.chi2 - sol.chi2
+    local p = 1 / (1 + exp(-0.5 * d))
+    res.confidence = p
+    res.alternative = result(nil, nil, other.pose.r, other.pose.t, other.covariance, other.used,
+      {})
+    res.alternative.confidence = 1 - p
+  end
   return res
 end
 
