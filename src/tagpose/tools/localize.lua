@@ -2,7 +2,8 @@
 -- `tagpose.localizer` and write where the robot was at every camera frame.
 --
 --   tagpose-localize CORNERS.csv --map MAP --cameras CAMERAS.lua [--odometry ODOMETRY.csv]
---     [--gyro GYRO.csv] [--single] [--tag-size S] [--map-check CHECK.csv] --out POSES.csv
+--     [--gyro GYRO.csv] [--single] [--tag-size S] [--map-check CHECK.csv] [--svg PLOT.svg]
+--     --out POSES.csv
 --
 -- CORNERS.csv  time,camera,tag,u1,v1,u2,v2,u3,v3,u4,v4 (rows of one time and camera are one
 --              frame; corners in the detector's order, pixels; times in seconds)
@@ -17,6 +18,10 @@
 --              (no odometry; the gyro's offset learnt from the frames before it)
 -- --map-check  where each map tag was seen against where the map puts it (the localizer's
 --              `map_check`): tag,dx,dy,dz,distance,frames (field frame, m), largest first
+-- --svg        the field from above (`tagpose.tools.localize_plot`): the map's tags, the
+--              estimated path with its 95 % position ellipses every 0.5 s, the odometry (not
+--              with --single) moved onto the path by the rigid motion that best fits it, each
+--              tag rejected marked with the rows that rejected it and the rows that saw it
 -- --out        time,camera,x,y,z,qw,qx,qy,qz,sx,sy,syaw,c11..c66,tags,rejected: one row per
 --              camera frame (the fused mode: every frame once the robot is placed; --single:
 --              every frame answered), the robot → field pose, σ of x, y and yaw, the 6×6
@@ -26,7 +31,8 @@
 -- The inputs are read whole and merged in time order (at one time: odometry, gyro, then the
 -- frames), so each row is the estimate at its frame's time from the data stamped up to it.
 -- Exit status: 0 written, 1 a file cannot be read or written, or has a bad row (its file and
--- line named), 2 a usage error or an --out that is an input. Nothing is written partially.
+-- line named), 2 a usage error or an output (--out, --map-check, --svg) that is an input or
+-- another output. Nothing is written partially.
 -- @module tagpose.tools.localize
 
 local tagpose = require("tagpose")
@@ -36,13 +42,14 @@ local luadata = require("tagpose.formats.luadata")
 local csv = require("tagpose.tools.csv")
 local files = require("tagpose.tools.files")
 local command = require("tagpose.tools.command")
+local localize_plot = require("tagpose.tools.localize_plot")
 
 local format, concat = string.format, table.concat
 local decimal = compat.decimal
 
 local USAGE = "usage: tagpose-localize CORNERS.csv --map MAP --cameras CAMERAS.lua\n"
   .. "  [--odometry ODOMETRY.csv] [--gyro GYRO.csv] [--single] [--tag-size S]\n"
-  .. "  [--map-check CHECK.csv] --out POSES.csv\n"
+  .. "  [--map-check CHECK.csv] [--svg PLOT.svg] --out POSES.csv\n"
 
 local cmd = command.new("localize", USAGE)
 local usage, fail, refuse = cmd.usage, cmd.fail, cmd.refuse
@@ -60,7 +67,7 @@ local function parse(argv)
     if a == "--help" or a == "-h" then
       cmd.help()
     elseif a == "--map" or a == "--cameras" or a == "--odometry" or a == "--gyro"
-      or a == "--out" or a == "--map-check" then
+      or a == "--out" or a == "--map-check" or a == "--svg" then
       opt[a:sub(3):gsub("-", "_")] = value(a)
     elseif a == "--tag-size" then
       opt.tag_size = args.positive(a)
@@ -173,6 +180,14 @@ local function row_text(fr, res)
   return concat(parts, ",")
 end
 
+-- What the plot reads of a result (see `tagpose.tools.localize_plot`).
+local function plot_row(t, res)
+  local p, C = res.position, res.covariance
+  return { time = t, position = { x = p.x, y = p.y }, yaw = res.yaw,
+    covariance = { { C[1][1], C[1][2] }, { C[2][1], C[2][2] } }, tags = res.tags,
+    rejected = res.rejected[1] and res.rejected or nil }
+end
+
 local function header()
   local h = { "time,camera,x,y,z,qw,qx,qy,qz,sx,sy,syaw" }
   for i = 1, 6 do
@@ -188,7 +203,8 @@ local function run(argv, open)
     { name = "the map", path = opt.map }, { name = "the cameras file", path = opt.cameras },
     { name = "the odometry", path = opt.odometry }, { name = "the gyro log", path = opt.gyro } }
   local outputs = { { name = "the poses (--out)", path = opt.out },
-    { name = "the map check (--map-check)", path = opt.map_check } }
+    { name = "the map check (--map-check)", path = opt.map_check },
+    { name = "the plot (--svg)", path = opt.svg } }
   local clash = files.clash(inputs, outputs)
   if clash then refuse(clash) end
   local out, err = output.open(opt.out)
@@ -199,6 +215,12 @@ local function run(argv, open)
     check, err = output.open(opt.map_check)
     if not check then fail(err) end
     open[#open + 1] = check
+  end
+  local plot
+  if opt.svg then
+    plot, err = output.open(opt.svg)
+    if not plot then fail(err) end
+    open[#open + 1] = plot
   end
   local cameras = read_cameras(opt.cameras)
   local size = opt.tag_size or cameras.tag_size
@@ -216,6 +238,7 @@ local function run(argv, open)
   local i, j = 1, 1
   out:write(header(), "\n")
   local rows = 0
+  local kept = opt.svg and {} or nil -- the rows the plot needs, only what it reads
   for _, fr in ipairs(frames) do
     while true do
       local to, tg = odo[i] and odo[i][1], gyro[j] and gyro[j][1]
@@ -233,6 +256,7 @@ local function run(argv, open)
     if res and res.position then
       out:write(row_text(fr, res), "\n")
       rows = rows + 1
+      if kept then kept[#kept + 1] = plot_row(fr.t, res) end
     end
   end
   if check then
@@ -242,6 +266,11 @@ local function run(argv, open)
         r.frames))
     end
     check:commit()
+  end
+  if plot then
+    plot:write((localize_plot.svg(loc.tags, kept, #odo > 0 and odo or nil,
+      { title = "tagpose-localize " .. opt.corners })))
+    plot:commit()
   end
   out:commit()
   io.stdout:write(format("wrote %s: %d rows from %d camera frames\n", opt.out, rows, #frames))
