@@ -267,11 +267,21 @@ function M.solve(obs, n, pr, sigma, nuisance, start, distrust)
     pc = prior_chi2(pr, pose)
   end
   if pc > M.PRIOR_GATE then
+    -- the priors refuse these tags: the frame again without them, when others are left (a
+    -- phantom beside one real tag may win the fit, and only the priors tell)
+    local without, others = {}, false
+    for k, v in pairs(distrust or {}) do without[k] = v end
+    local why = ("the floor, gravity or heading priors disagree (χ² %.0f)"):format(pc)
     for i = 1, n do
       if active[i] then
-        rejected[#rejected + 1] = { id = obs[i].id,
-          why = ("the floor, gravity or heading priors disagree (χ² %.0f)"):format(pc) }
+        without[obs[i].id] = why
+      elseif eligible[i] then
+        others = true
       end
+    end
+    if others then return M.solve(obs, n, pr, sigma, nuisance, start, without) end
+    for i = 1, n do
+      if active[i] then rejected[#rejected + 1] = { id = obs[i].id, why = why } end
     end
     return nil, rejected
   end
