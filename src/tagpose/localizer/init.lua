@@ -69,6 +69,8 @@ M.DISTRUST_FRAMES = 20
 M.BIAS_MEMORY = 0.97
 --- `localize` reports the other minimum when its χ² is within this of the best's.
 M.ALTERNATIVE_GATE = 20
+--- The gyro's heading is extrapolated by its rate over this many seconds at most.
+M.RATE_REACH = 0.1
 --- The gyro's rate is taken over this many seconds at least.
 M.RATE_BASE = 0.03
 --- The RMS size of the error of a left-out tag's place, when single mode answers from such
@@ -248,7 +250,12 @@ end
 -- false before any gyro sample (the odometry's heading stands in).
 local function heading(s, t)
   local g = s.gyro
-  if g then return g[2] + s.gyro_rate * (t - g[1]) end
+  if g then
+    -- (extrapolated by its rate over `RATE_REACH` at most: a gyro that stopped is not spun on)
+    local dt = t - g[1]
+    if dt > M.RATE_REACH then dt = M.RATE_REACH end
+    return g[2] + s.gyro_rate * dt
+  end
   local o = s.odo
   if o then return o[4] end
   return false
@@ -450,10 +457,10 @@ local function check_tags(self, time, camera, obs, r, t, sigma)
   end
 end
 
-local function process_frame(self, name, detections, t)
+local function process_frame(self, name, detections, t, moved)
   local s = self.state
   local o = self.options
-  local cam = self.cameras[name]
+  local cam = moved or self.cameras[name]
   local sigma = sigma_of(self)
   s.sigma = sigma
   local pr = { sigma_z = o.floor_sigma > 0 and o.floor_sigma or nil,
@@ -661,7 +668,7 @@ end
 local function run_odometry(self, e) process_odometry(self, e.t, e.x, e.y, e.yaw) end
 local function run_gyro(self, e) process_gyro(self, e.t, e.yaw) end
 local function run_frame(self, e)
-  local res, rejected = process_frame(self, e.camera, e.detections, e.t)
+  local res, rejected = process_frame(self, e.camera, e.detections, e.t, e.cam)
   if not res then res = { time = e.t, camera = e.camera, rejected = rejected } end
   e.result = res
   return res
@@ -781,13 +788,15 @@ end
 -- @tparam string camera a name of `cameras`
 -- @tparam {table,...} detections `{id =, corners =}` each (`tagpose.solve`'s corners)
 -- @tparam number time the frame's capture time, s
+-- @tparam[opt] table mount this frame's mount, `{position =, quaternion =}` (camera → robot),
+--   for a camera that moves on the robot (on a lift); default the camera's own
 -- @treturn table the robot's pose at that time: `position`, `rotation` (nested, robot → field),
 --   `quaternion`, `yaw`, `covariance` (6×6: x, y, z, then a small rotation in the field frame),
 --   `sigma = {x, y, yaw}`, `tags` (the ids used), `rejected` (`{id =, why =}`), `gyro_offset`,
 --   `accepted` (the frame corrected the estimate); or, before the first frame that places the
 --   robot, a table with `rejected` alone
 -- @return nil, string when the frame is older than the history kept
-function Localizer:update(camera, detections, time)
+function Localizer:update(camera, detections, time, mount)
   if self.cameras[camera] == nil then
     local names = {}
     for k in pairs(self.cameras) do names[#names + 1] = tostring(k) end
@@ -804,7 +813,17 @@ function Localizer:update(camera, detections, time)
       .. "{detection})", 2)
   end
   check_time(time, 3, "update")
-  return feed(self, { t = time, camera = camera, detections = detections, run = run_frame })
+  local cam
+  if mount ~= nil then
+    -- this frame's mount: the camera's calibration with it (a camera on a lift)
+    local c = self.cameras[camera]
+    local m = read_camera(camera, { fx = c.fx, fy = c.fy, cx = c.intr.cx, cy = c.intr.cy,
+      mount = mount }, 3, 4, "update")
+    cam = { name = c.name, intr = c.intr, fx = c.fx, fy = c.fy, index = c.index,
+      mount = m.mount }
+  end
+  return feed(self, { t = time, camera = camera, detections = detections, run = run_frame,
+    cam = cam })
 end
 
 --- Where each map tag was seen against where the map puts it (with `options.map_check`): for
