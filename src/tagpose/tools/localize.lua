@@ -14,6 +14,7 @@
 --              robot (ROS robot frame: x forward, y left, z up, origin on the floor), metres
 -- --odometry   time,x,y,yaw: the robot's dead-reckoned pose (any frame; need not be reset)
 -- --gyro       time,yaw: the gyro's heading, radians (any offset: it is learnt from the tags)
+-- --max-gap    the longest gap allowed between two odometry or two gyro rows (default 1 s)
 -- --single     each frame that saw a map tag alone, with the gyro and the floor as priors
 --              (no odometry; the gyro's offset learnt from the frames before it)
 -- --map-check  where each map tag was seen against where the map puts it (the localizer's
@@ -48,7 +49,7 @@ local format, concat = string.format, table.concat
 local decimal = compat.decimal
 
 local USAGE = "usage: tagpose-localize CORNERS.csv --map MAP --cameras CAMERAS.lua\n"
-  .. "  [--odometry ODOMETRY.csv] [--gyro GYRO.csv] [--single] [--tag-size S]\n"
+  .. "  [--odometry ODOMETRY.csv] [--gyro GYRO.csv] [--single] [--tag-size S] [--max-gap S]\n"
   .. "  [--map-check CHECK.csv] [--svg PLOT.svg] --out POSES.csv\n"
 
 local cmd = command.new("localize", USAGE)
@@ -57,6 +58,7 @@ local usage, fail, refuse = cmd.usage, cmd.fail, cmd.refuse
 local M = {}
 
 local MAX_RECORD, MAX_COLUMNS = 4096, 64
+local MAX_GAP = 1 -- s between two odometry or gyro rows, unless --max-gap says otherwise
 local MAX_CAMERAS_BYTES = 1048576
 
 local function parse(argv)
@@ -71,6 +73,8 @@ local function parse(argv)
       opt[a:sub(3):gsub("-", "_")] = value(a)
     elseif a == "--tag-size" then
       opt.tag_size = args.positive(a)
+    elseif a == "--max-gap" then
+      opt.max_gap = args.positive(a)
     elseif a == "--single" then
       opt.single = true
     elseif a:sub(1, 2) == "--" then
@@ -123,12 +127,18 @@ local function read_table(path, columns, text)
   return rows
 end
 
--- Rows in time order, or a failure at the first that goes back.
-local function in_order(path, rows)
+-- Rows in time order, or a failure at the first that goes back; with `gap`, at the first more
+-- than `gap` seconds after the row before (a sensor that stopped: its steps would be one long
+-- one, or none).
+local function in_order(path, rows, gap)
   for i = 2, #rows do
     if rows[i][1] < rows[i - 1][1] then
       fail(format("%s:%d: time %s goes back (the row before: %s)", path, rows[i].line,
         tostring(rows[i][1]), tostring(rows[i - 1][1])))
+    end
+    if gap and rows[i][1] - rows[i - 1][1] > gap then
+      fail(format("%s:%d: a gap of %.3g s after time %s (more than --max-gap %g s)", path,
+        rows[i].line, rows[i][1] - rows[i - 1][1], tostring(rows[i - 1][1]), gap))
     end
   end
   return rows
@@ -232,8 +242,10 @@ local function run(argv, open)
     ""):gsub("%)$", "")) end
   local frames = read_frames(opt.corners, loc.cameras)
   local odo = opt.odometry and not opt.single
-    and in_order(opt.odometry, read_table(opt.odometry, { "time", "x", "y", "yaw" })) or {}
-  local gyro = opt.gyro and in_order(opt.gyro, read_table(opt.gyro, { "time", "yaw" })) or {}
+    and in_order(opt.odometry, read_table(opt.odometry, { "time", "x", "y", "yaw" }),
+      opt.max_gap or MAX_GAP) or {}
+  local gyro = opt.gyro and in_order(opt.gyro, read_table(opt.gyro, { "time", "yaw" }),
+    opt.max_gap or MAX_GAP) or {}
   -- merged in time order: at one time the odometry, the gyro, then the frames
   local i, j = 1, 1
   out:write(header(), "\n")
