@@ -382,6 +382,10 @@ else
   table.sort(names)
   for _, name in ipairs(names) do
     local sub = args.dir:gsub("/*$", "") .. "/" .. name
-    if exists(sub .. "/corners.csv") and exists(sub .. "/truth.csv") then run(sub) end
+    -- (a set of tag poses has its camera.lua; a drive log's robot poses are localization's)
+    if exists(sub .. "/corners.csv") and exists(sub .. "/truth.csv")
+      and exists(sub .. "/camera.lua") then
+      run(sub)
+    end
   end
 end

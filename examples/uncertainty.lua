@@ -469,8 +469,9 @@ else
   table.sort(names)
   for _, name in ipairs(names) do
     local sub = opts.dir:gsub("/*$", "") .. "/" .. name
+    -- (a set of tag poses has its camera.lua; a drive log's robot poses are localization's)
     if exists(sub .. "/corners.csv") and exists(sub .. "/truth.csv")
-      or exists(sub .. "/truth_layout.csv") then
+      and exists(sub .. "/camera.lua") or exists(sub .. "/truth_layout.csv") then
       run(sub)
     end
   end
