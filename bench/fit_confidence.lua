@@ -74,7 +74,11 @@ for _, dir in ipairs(opt.dirs) do
   else
     local p = io.popen('ls -1 "' .. dir .. '"')
     for name in p:lines() do
-      if exists(dir .. "/" .. name .. "/truth.csv") then sets[#sets + 1] = dir .. "/" .. name end
+      -- (a set of tag poses has its camera.lua; not a drive log of robot poses)
+      if exists(dir .. "/" .. name .. "/truth.csv") and exists(dir .. "/" .. name .. "/camera.lua")
+      then
+        sets[#sets + 1] = dir .. "/" .. name
+      end
     end
     p:close()
   end

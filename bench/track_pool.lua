@@ -106,7 +106,11 @@ local function sets_of(dirs)
       p:close()
       table.sort(names)
       for _, name in ipairs(names) do
-        if exists(dir .. "/" .. name .. "/truth.csv") then out[#out + 1] = dir .. "/" .. name end
+        -- (a set of tag poses has its camera.lua; not a drive log of robot poses)
+        local sub = dir .. "/" .. name
+        if exists(sub .. "/truth.csv") and exists(sub .. "/camera.lua") then
+          out[#out + 1] = sub
+        end
       end
     end
   end
