@@ -360,7 +360,8 @@ describe("tagpose.tools.localize_plot", function()
       setup()
       local out, status = run.script("bin/tagpose-localize", dir .. "/corners.csv", "--map",
         dir .. "/map.csv", "--cameras", dir .. "/cameras.lua", "--odometry",
-        dir .. "/odometry.csv", "--out", dir .. "/poses.csv", "--svg", dir .. "/plot.svg")
+        dir .. "/odometry.csv", "--max-gap", "2", "--out", dir .. "/poses.csv", "--svg",
+        dir .. "/plot.svg")
       assert.equal(0, status, out)
       local poses = run.read(dir .. "/poses.csv")
       local nrows = run.count(poses, "\n") - 1

@@ -55,8 +55,11 @@ M.ELLIPSE_EVERY = 0.5
 M.GAP = 1.0
 --- Room around the tags and the path, m.
 M.MARGIN = 0.6
---- The drawing's largest plot area, px (the field is scaled to fit it, one scale for x and y).
-M.MAX_WIDTH, M.MAX_HEIGHT = 1100, 700
+--- The drawing's largest plot area's width, px (the field is scaled to fit it, one scale for x
+-- and y)...
+M.MAX_WIDTH = 1100
+--- ... and its height, px.
+M.MAX_HEIGHT = 700
 
 M.COLOURS = { path = "#1f77b4", ellipse = "#1f77b4", odometry = "#ff7f0e", tag = "#333333",
   rejected = "#d62728", field = "#888888" }
