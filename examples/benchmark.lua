@@ -27,9 +27,9 @@
 -- line, a few fields of a robot record: interpreted code, as a robot's is), then the solve,
 -- then (`read`) its confidence and covariance; it prints `work`, µs per frame of that work
 -- alone, and `solve` and `read`, µs per frame of the loop less the work: what a solve costs
--- between other code rather than in a hot loop of solves, which is a best case. With --require it prints the modules `require "tagpose"` loads and the heap they
--- hold (KB, after a full collection), then the same after a plain solve, and after reading
--- confidence and covariance.
+-- between other code rather than in a hot loop of solves, which is a best case. With --require
+-- it prints the modules `require "tagpose"` loads and the heap they hold (KB, after a full
+-- collection), then the same after a plain solve, and after reading confidence and covariance.
 
 package.path = "./src/?.lua;./src/?/init.lua;" .. package.path
 
