@@ -53,8 +53,12 @@ local IN_LOCALS = not compat.jit
 local function made(mt)
   local x = mt[READ]
   if not x then
-    x = { false, false, 0, 0, 0, 0, 0, 0, 0, 0, false, false, false, 1, 0, 0, 0, 0, 0, 0, 0, 0,
-      0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0 }
+    if IN_LOCALS then
+      x = { false, false, 0, 0, 0, 0, 0, 0, 0, 0, false, false, false, 1, 0, 0, 0, 0, 0, 0, 0,
+        0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0 }
+    else
+      x = { false, false, 0, 0, 0, 0, 0, 0, 0, 0, false, false, false, 1 }
+    end
     mt[READ] = x
   end
   return x
