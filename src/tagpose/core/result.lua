@@ -72,6 +72,9 @@ local analysed -- the metatable whose candidates cand_a and cand_b hold now
 -- that happens to be in the same scratch records
 local serial = 0
 
+local CHANGED = "tagpose: a pose was changed in place after its solve: read its alternative, "
+  .. "confidence, covariance and track before changing it (or copy it)"
+
 -- The checksum of a pose table's position and quaternion.
 local function checksum(p)
   local t, q = p.position, p.quaternion
@@ -89,8 +92,7 @@ local function candidates(mt)
   local p = mt[FIRST]
   local sum = checksum(p)
   if sum ~= mt[CHECK] then
-    error("tagpose: a pose was changed in place after its solve: read its alternative, "
-      .. "confidence, covariance and track before changing it (or copy it)", 3)
+    error(CHANGED, 3)
   end
   local a, b = cand_a, cand_b
   local r, R, q, t = a.r, p.rotation, p.quaternion, p.position
@@ -158,7 +160,12 @@ local function covariance(mt, x, is_alt)
     x[slot] = cov
     return cov
   end
-  if analysed ~= mt then candidates(mt) end
+  if analysed ~= mt then
+    candidates(mt)
+  elseif checksum(mt[FIRST]) ~= mt[CHECK] then
+    -- (checked whatever was read before: as the analysis does, and as PUC Lua's path does)
+    error(CHANGED, 3)
+  end
   local c, slot, k, sign = cand_a, X_COV_A, x[X_K_A], 1
   if is_alt then c, slot, k, sign = cand_b, X_COV_B, x[X_K_B], -1 end
   -- (σ² estimated from the frame: the covariance and its chord term widened by κ, so that its
