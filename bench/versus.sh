@@ -5,12 +5,16 @@
 #
 #   bench/versus.sh REV [MODE] [LUA] [PAIRS] [DATASET_DIR]
 #
-# MODE plain (default), read (confidence and covariance of every pose read) or alternative
-# (its alternative read); LUA default lua5.4; PAIRS default 11; DATASET_DIR default
-# bench/dev/noise_0.5. REV is anything git names (v0.2.0, a commit).
+# MODE plain (default), read (confidence and covariance of every pose read), alternative
+# (its alternative read) or tracker (tracker:update of one detection a frame); LUA default
+# lua5.4; PAIRS default 11; DATASET_DIR default bench/dev/noise_0.5 (bench/dev/sequences for
+# tracker). REV is anything git names (v0.2.0, a commit).
 set -eu
 cd "$(dirname "$0")/.."
-rev=$1 mode=${2:-plain} lua=${3:-lua5.4} pairs=${4:-11} dir=${5:-bench/dev/noise_0.5}
+rev=$1 mode=${2:-plain} lua=${3:-lua5.4} pairs=${4:-11}
+default=bench/dev/noise_0.5
+[ "$mode" = tracker ] && default=bench/dev/sequences
+dir=${5:-$default}
 other=$(mktemp -d)
 trap 'rm -rf "$other"' EXIT
 git archive "$rev" src | tar -x -C "$other"

@@ -2,6 +2,8 @@
 --
 --   lua5.4 examples/benchmark.lua [DATASET_DIR] [--method refined|seed] [--passes N]
 --   lua5.4 examples/benchmark.lua SEQUENCES_DIR --tracker [--passes N]
+--   lua5.4 examples/benchmark.lua [DATASET_DIR] --controller [--passes N]
+--   lua5.4 examples/benchmark.lua SEQUENCES_DIR --tracker --controller [--passes N]
 --   lua5.4 examples/benchmark.lua --require
 --   valgrind --tool=callgrind lua5.4 examples/benchmark.lua DATASET_DIR --solve-only N
 --
@@ -21,9 +23,15 @@
 -- With --tracker the rows are tracked frame by frame (one detection a frame; in bench/dev's
 -- `sequences`, frame = sequence·1000 + k, each sequence a tag and k/30 s its time) and it
 -- prints µs per `tracker:update` of one detection, µs per plain solve of the same rows, and
--- their ratio. With --require it prints the modules `require "tagpose"` loads and the heap they
--- hold (KB, after a full collection), then the same after a plain solve, and after reading
--- confidence and covariance.
+-- their ratio. With --controller each row is a frame of a controller loop: other work first
+-- (a ring of recent readings and its mean and spread, a sort with a comparator, a telemetry
+-- line, a few fields of a robot record: interpreted code, as a robot's is), then the solve,
+-- then (`read`) its confidence and covariance; it prints `work`, µs per frame of that work
+-- alone, and `solve` and `read`, µs per frame of the loop less the work: what a solve costs
+-- between other code rather than in a hot loop of solves, which is a best case (with --tracker,
+-- `tracker:update` and a plain solve so, and their ratio). With --require
+-- it prints the modules `require "tagpose"` loads and the heap they hold (KB, after a full
+-- collection), then the same after a plain solve, and after reading confidence and covariance.
 
 package.path = "./src/?.lua;./src/?/init.lua;" .. package.path
 
@@ -41,7 +49,7 @@ do
     elseif a == "--solve-only" then
       i = i + 1
       args.solve_only = tonumber(arg[i])
-    elseif a == "--tracker" or a == "--require" then
+    elseif a == "--tracker" or a == "--require" or a == "--controller" then
       args[a:sub(3)] = true
     elseif a:sub(1, 2) == "--" then
       io.stderr:write("unknown option " .. a .. "\n")
@@ -132,6 +140,32 @@ local function solve_pass(opts, read)
   end
 end
 
+-- a robot's other work between two frames (see the header); the same every run
+local robot = { ring = {}, head = 0, mean = 0, spread = 0, speed = 0, heading = 0, line = "" }
+local scratch = {}
+local function descending(a, b) return a > b end
+local function work(k)
+  local ring = robot.ring
+  robot.head = robot.head % 32 + 1
+  ring[robot.head] = (k * 7919) % 1000 / 1000
+  local sum, sq, m = 0, 0, #ring
+  for j = 1, m do
+    local v = ring[j]
+    sum, sq = sum + v, sq + v * v
+  end
+  robot.mean = sum / m
+  robot.spread = math.sqrt(math.max(sq / m - robot.mean * robot.mean, 0))
+  for j = 1, 16 do scratch[j] = ring[(robot.head + j) % m + 1] end
+  table.sort(scratch, descending)
+  if robot.mean > 0.5 then
+    robot.speed = robot.speed + 0.1 * (scratch[1] - robot.speed)
+  else
+    robot.heading = robot.heading - 0.1 * (scratch[16] - robot.heading)
+  end
+  robot.line = string.format("%d %.3f %.3f %.2f %.2f", k, robot.mean, robot.spread,
+    robot.speed, robot.heading)
+end
+
 if args.tracker then
   -- one detection a frame; a sequence's frames are a track (ids and times from the frame)
   local frames = {}
@@ -144,8 +178,55 @@ if args.tracker then
     for i = 1, n do tr:update(frames[i], (p or 0) * 1e4 + (rows[i].frame % 1000) / 30) end
   end)
   local plain = median(solve_pass({}))
-  print(("%s | %s | tracker %d rows | update %.2f | solve %.2f | ratio %.2f"):format(vm, name, n,
-    tracked / n * 1e6, plain / n * 1e6, tracked / plain))
+  if not args.controller then
+    print(("%s | %s | tracker %d rows | update %.2f | solve %.2f | ratio %.2f"):format(vm, name,
+      n, tracked / n * 1e6, plain / n * 1e6, tracked / plain))
+    return
+  end
+  -- the same, each frame after the controller's other work (less the work timed alone)
+  local t_work = median(function()
+    for i = 1, n do work(i) end
+  end)
+  tracked = median(function(p)
+    local tr = tagpose.tracker.new(camera, tag_size)
+    for i = 1, n do
+      work(i)
+      tr:update(frames[i], (p or 0) * 1e4 + (rows[i].frame % 1000) / 30)
+    end
+  end) - t_work
+  plain = median(function()
+    local solve = tagpose.solve
+    for i = 1, n do
+      work(i)
+      solve(corners[i], camera, tag_size)
+    end
+  end) - t_work
+  print(("%s | %s | tracker %d rows, controller loop | work %.2f | update %.2f | solve %.2f"
+    .. " | ratio %.2f"):format(vm, name, n, t_work / n * 1e6, tracked / n * 1e6, plain / n * 1e6,
+    tracked / plain))
+  return
+end
+
+if args.controller then
+  local function loop(solving, read)
+    return function()
+      local solve = tagpose.solve
+      for i = 1, n do
+        work(i)
+        if solving then
+          local pose = solve(corners[i], camera, tag_size, options)
+          if read and pose then
+            local _, _ = pose.confidence, pose.covariance[1][1]
+          end
+        end
+      end
+    end
+  end
+  local t_work = median(loop(false))
+  local t_solve = median(loop(true)) - t_work
+  local t_both = median(loop(true, true)) - t_work
+  print(("%s | %s | controller %d rows | work %.2f | solve %.2f | read %.2f"):format(vm, name, n,
+    t_work / n * 1e6, t_solve / n * 1e6, t_both / n * 1e6))
   return
 end
 

@@ -99,6 +99,7 @@ build = {
     ["tagpose.uncertainty"] = "src/tagpose/uncertainty/init.lua",
     ["tagpose.uncertainty.matrix"] = "src/tagpose/uncertainty/matrix.lua",
     ["tagpose.uncertainty.model"] = "src/tagpose/uncertainty/model.lua",
+    ["tagpose.uncertainty.read"] = "src/tagpose/uncertainty/read.lua",
   },
 }
 test = {

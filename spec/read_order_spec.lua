@@ -132,6 +132,32 @@ describe("a value made on read", function()
     check(poses[#poses], refs[#poses], "last row")
   end)
 
+  it("is refused once the pose was changed in place, whatever was read before", function()
+    local changed = "a pose was changed in place after its solve"
+    for i = 1, #sets - 1 do
+      if refs[i].has_alt then
+        -- nothing read; its confidence read; another pose read between
+        local p = assert(tagpose.solve(sets[i], camera, SIZE))
+        p.position.x = p.position.x + 1
+        assert.has_error(function() return p.confidence end, nil)
+        local ok, err = pcall(function() return p.covariance end)
+        assert(not ok and err:find(changed, 1, true), "row " .. i .. ": " .. tostring(err))
+        p = assert(tagpose.solve(sets[i], camera, SIZE))
+        local _ = p.confidence
+        p.position.x = p.position.x + 1
+        ok, err = pcall(function() return p.covariance end)
+        assert(not ok and err:find(changed, 1, true), "row " .. i .. ": " .. tostring(err))
+        p = assert(tagpose.solve(sets[i], camera, SIZE))
+        _ = p.confidence
+        local q = assert(tagpose.solve(sets[i + 1], camera, SIZE))
+        _ = q.covariance
+        p.quaternion.w = -p.quaternion.w
+        ok, err = pcall(function() return p.alternative.covariance end)
+        assert(not ok and err:find(changed, 1, true), "row " .. i .. ": " .. tostring(err))
+      end
+    end
+  end)
+
   it("is the pose's own when solved into reused tables (options.into) in any order", function()
     local into = {}
     for i = 1, #sets do into[i] = {} end

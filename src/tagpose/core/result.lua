@@ -23,6 +23,7 @@
 -- same table every frame allocates nothing.
 -- @module tagpose.core.result
 
+local compat = require("tagpose.core.compat")
 local rotation = require("tagpose.core.rotation")
 
 local to_nested = rotation.to_nested
@@ -41,12 +42,23 @@ local READ = 70
 local X_ALT, X_ANALYSED, X_K_A, X_K_B, X_CHORD = 1, 2, 3, 4, 4 -- chord: 5..10
 local X_COV_A, X_COV_B, X_TRACK = 11, 12, 13 -- the tables made before, to fill again
 local X_KAPPA = 14 -- the covariance's factor for an estimated σ (`tagpose.uncertainty.noise`)
+-- (slots 15..35: the factors of the pose's H, kept by `tagpose.uncertainty.read`)
+
+-- On PUC Lua the confidence and covariance are made by `tagpose.uncertainty.read`, in passes
+-- of locals over this metatable's numbers; on LuaJIT, whose traces do not take a function
+-- with that many live locals, by `tagpose.uncertainty` from candidate records.
+local IN_LOCALS = not compat.jit
 
 -- The record of what was made on read (made at the first read; one table, at its size).
 local function made(mt)
   local x = mt[READ]
   if not x then
-    x = { false, false, 0, 0, 0, 0, 0, 0, 0, 0, false, false, false, 1 }
+    if IN_LOCALS then
+      x = { false, false, 0, 0, 0, 0, 0, 0, 0, 0, false, false, false, 1, 0, 0, 0, 0, 0, 0, 0,
+        0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0 }
+    else
+      x = { false, false, 0, 0, 0, 0, 0, 0, 0, 0, false, false, false, 1 }
+    end
     mt[READ] = x
   end
   return x
@@ -59,6 +71,9 @@ local analysed -- the metatable whose candidates cand_a and cand_b hold now
 -- so that the uncertainty reuses its factors for that analysis only, never for another pose's
 -- that happens to be in the same scratch records
 local serial = 0
+
+local CHANGED = "tagpose: a pose was changed in place after its solve: read its alternative, "
+  .. "confidence, covariance and track before changing it (or copy it)"
 
 -- The checksum of a pose table's position and quaternion.
 local function checksum(p)
@@ -77,8 +92,7 @@ local function candidates(mt)
   local p = mt[FIRST]
   local sum = checksum(p)
   if sum ~= mt[CHECK] then
-    error("tagpose: a pose was changed in place after its solve: read its alternative, "
-      .. "confidence, covariance and track before changing it (or copy it)", 3)
+    error(CHANGED, 3)
   end
   local a, b = cand_a, cand_b
   local r, R, q, t = a.r, p.rotation, p.quaternion, p.position
@@ -102,6 +116,23 @@ end
 local function analyse(mt)
   local x = made(mt)
   if x[X_ANALYSED] then return x end
+  if IN_LOCALS then
+    local read = lazy.read
+    if not read then
+      read = require("tagpose.uncertainty.read")
+      lazy.read = read
+    end
+    local p = read.analyse(mt, x)
+    serial = serial + 1
+    x[X_ANALYSED] = serial
+    local first = mt[FIRST]
+    if rawget(first, "confidence") == nil then
+      rawset(first, "confidence", p)
+      local alt = x[X_ALT]
+      if alt and mt[ERR_B] then rawset(alt, "confidence", 1 - p) end
+    end
+    return x
+  end
   local a, b = candidates(mt)
   local sigma2, kappa = mt[SIGMA2], 1
   if not sigma2 then sigma2, kappa = lazy.uncertainty.noise(a.sse) end
@@ -123,7 +154,18 @@ end
 -- The covariance of the returned pose, or of its alternative (x analysed: the uncertainty
 -- reuses the factors of x's own analysis when nothing was factored since).
 local function covariance(mt, x, is_alt)
-  if analysed ~= mt then candidates(mt) end
+  if IN_LOCALS then
+    local slot = is_alt and X_COV_B or X_COV_A
+    local cov = lazy.read.covariance(mt, x, is_alt, x[slot] or nil)
+    x[slot] = cov
+    return cov
+  end
+  if analysed ~= mt then
+    candidates(mt)
+  elseif checksum(mt[FIRST]) ~= mt[CHECK] then
+    -- (checked whatever was read before: as the analysis does, and as PUC Lua's path does)
+    error(CHANGED, 3)
+  end
   local c, slot, k, sign = cand_a, X_COV_A, x[X_K_A], 1
   if is_alt then c, slot, k, sign = cand_b, X_COV_B, x[X_K_B], -1 end
   -- (σ² estimated from the frame: the covariance and its chord term widened by κ, so that its

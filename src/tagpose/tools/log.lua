@@ -348,8 +348,7 @@ function M.pose_line(frame, tag, pose, confidence)
   if not pose then return num(frame) .. "," .. num(tag) .. ",,,,,,,,,,,,,,,," end
   local p, q, cov = pose.position, pose.quaternion, pose.covariance
   return concat({ num(frame), num(tag), num(p.x), num(p.y), num(p.z), num(q.w), num(q.x),
-    num(q.y), num(q.z), num(pose.error), num(pose.iterations),
-    num(confidence or pose.confidence),
+    num(q.y), num(q.z), num(pose.error), num(pose.iterations), num(confidence or pose.confidence),
     num(deviation(cov, 1)), num(deviation(cov, 2)), num(deviation(cov, 3)),
     num(deviation(cov, 4)), num(deviation(cov, 5)), num(deviation(cov, 6)) }, ",")
 end

@@ -99,6 +99,15 @@ function M.assign(set, n, ids, us, vs, ss, time, limit, match, stamp)
     local list = id ~= nil and by_id[id]
     if list then np = gate(i, us[i], vs[i], ss[i], list, time, limit, np) end
   end
+  if np < 2 then
+    -- (one pair, the common frame of one tag: its own order, no sort)
+    if np == 1 then
+      local t = pair_track[1]
+      match[pair_det[1]], t.taken = t, stamp
+      pair_track[1] = nil
+    end
+    return match
+  end
   for a = 1, np do order[a] = a end
   for a = np + 1, #order do order[a] = nil end
   sort(order, nearer)

@@ -339,7 +339,9 @@ local function feed(self, detections, time, fname, solving)
   local problem = camera_model.check(self.camera)
   if problem then args.raise(0, fname, "the tracker's camera was changed: " .. problem, 4) end
   self.solving = solving
-  local seen = { skipped = 0 }
+  -- (room for one entry, the common frame, made with the array: filled key by key a table's
+  -- parts grow through a resize at each power of two; the entries are made with all their keys)
+  local seen = { nil, skipped = 0 }
   if time == nil then time = (self.time or 0) + track.FRAME end
   if self.time and time < self.time then
     self:reset()
@@ -356,9 +358,9 @@ local function feed(self, detections, time, fname, solving)
   for i = 1, n do
     local det = detections[i]
     local why = read_entry(self, det, i)
-    local entry = { index = i, reason = why }
-    seen[i] = entry
-    if type(det) == "table" and det.id == det.id then entry.id = det.id end
+    local id = nil
+    if type(det) == "table" and det.id == det.id then id = det.id end
+    seen[i] = { index = i, id = id, track = nil, new = nil, pose = nil, reason = why }
   end
   local match = associate.assign(self.live, n, self.ids, self.us, self.vs, self.ss, time,
     M.GATE, self.match, self.frames)
