@@ -357,9 +357,8 @@ local Writer = {}
 Writer.__index = Writer
 
 --- Open a pose log for writing row by row: the header now, a line per `write`. A path is
--- written whole or not at all (`tagpose.formats.output`: a temporary file beside it, renamed
--- onto it by `close`), so the old file stays as it was until the log is complete; a path that
--- is not a regular file (a device, a FIFO, a pipe) is written through.
+-- written whole or not at all (`tagpose.formats.output`: a temporary beside it renamed onto it
+-- by `close`: the old file kept until the log is complete); a device, FIFO or pipe through.
 -- @tparam string|file target a path (replaced by `close`) or an open file (left open, flushed
 --   by `close`)
 -- @treturn table the writer, with `write(frame, tag, pose[, confidence])` (as `pose_line`),
