@@ -29,6 +29,7 @@ build = {
     ["tagpose.tools.csv"] = "src/tagpose/tools/csv.lua",
     ["tagpose.tools.files"] = "src/tagpose/tools/files.lua",
     ["tagpose.tools.localize"] = "src/tagpose/tools/localize.lua",
+    ["tagpose.tools.localize_geometry"] = "src/tagpose/tools/localize_geometry.lua",
     ["tagpose.tools.localize_plot"] = "src/tagpose/tools/localize_plot.lua",
     ["tagpose.tools.log"] = "src/tagpose/tools/log.lua",
     ["tagpose.tools.plot.draw"] = "src/tagpose/tools/plot/draw.lua",

@@ -1,6 +1,6 @@
---- The field from above as SVG, for `tagpose-localize --svg`: the map's tags, the estimated
--- path with its 95 % position ellipses, the odometry beside it, the tags rejected marked. Pure:
--- the functions return text and numbers, no I/O.
+--- The field from above as SVG, for the `--svg` of `tagpose-localize`: the map's tags, the
+-- estimated path with its 95 % position ellipses, the odometry beside it, the tags rejected
+-- marked. Pure: the functions return text and numbers, no I/O.
 --
 -- Frames and units: the field's (the map's: x, y on the floor, z up), metres, angles in
 -- radians (degrees only in the drawing's labels). The drawing has one scale for x and y, x to
@@ -23,6 +23,9 @@
 --   translation) that best aligns it with the path: least squares over the rows' times within
 --   the odometry's span (the odometry interpolated linearly there), in closed form (`align`).
 --
+-- The arithmetic (`align`, `ellipse`, the field's bounds and scale) lives in
+-- `tagpose.tools.localize_geometry`; `align`, `ellipse` and `CHI2_95` are reachable here too.
+--
 -- Every part is a `<g class=...>` group with `data-` attributes that say what it holds (`tags`:
 -- `data-count`, `data-rejected`; each `tag`: `data-id`, `data-rejected` rows; `path`:
 -- `data-points`, `data-runs`; `ellipses`: `data-count`, each `ellipse` its `data-time`,
@@ -33,22 +36,24 @@
 
 local args = require("tagpose.core.args")
 local compat = require("tagpose.core.compat")
+local geometry = require("tagpose.tools.localize_geometry")
 local scale = require("tagpose.tools.plot.scale")
 local svg = require("tagpose.tools.plot.svg")
 
-local sqrt, cos, sin, log, deg = math.sqrt, math.cos, math.sin, math.log, math.deg
-local floor, ceil, min, max, huge, pi = math.floor, math.ceil, math.min, math.max, math.huge,
-  math.pi
+local sqrt, cos, sin, deg = math.sqrt, math.cos, math.sin, math.deg
+local floor, ceil, max, huge = math.floor, math.ceil, math.max, math.huge
 local format, concat = string.format, table.concat
-local atan2, is_finite = compat.atan2, compat.is_finite
+local is_finite = compat.is_finite
 local escape, coord, label = svg.escape, svg.coord, scale.label
+local has_position = geometry.has_position
 
 local FONT = svg.FONT
 
 local M = {}
 
---- χ² of 2 degrees of freedom below which 95 % of the mass lies: `-2 ln 0.05` (5.991).
-M.CHI2_95 = -2 * log(0.05)
+--- χ² of 2 degrees of freedom below which 95 % of the mass lies: `-2 ln 0.05` (5.991;
+-- `localize_geometry.CHI2_95`, which `ellipse` reads).
+M.CHI2_95 = geometry.CHI2_95
 --- An ellipse every this many seconds of rows.
 M.ELLIPSE_EVERY = 0.5
 --- The path is broken where two rows are further apart in time, s.
@@ -73,110 +78,13 @@ local function num(v)
   return s
 end
 
---- The 95 % ellipse of a 2×2 position covariance `[[c11, c12], [c12, c22]]`.
--- @tparam number c11 m²
--- @tparam number c12
--- @tparam number c22
--- @treturn number the semi-major axis, m: `sqrt(CHI2_95 · λ1)`
--- @treturn number the semi-minor axis, m: `sqrt(CHI2_95 · λ2)` (a negative eigenvalue from
---   round-off counts as 0)
--- @treturn number the major axis's angle from x, radians in (-π/2, π/2]
-function M.ellipse(c11, c12, c22)
-  local m, d = 0.5 * (c11 + c22), 0.5 * (c11 - c22)
-  local r = sqrt(d * d + c12 * c12)
-  local l1, l2 = max(m + r, 0), max(m - r, 0)
-  local angle = 0.5 * atan2(2 * c12, c11 - c22)
-  if angle <= -0.5 * pi then angle = angle + pi end
-  return sqrt(M.CHI2_95 * l1), sqrt(M.CHI2_95 * l2), angle
-end
+--- The 95 % ellipse of a 2×2 position covariance: `localize_geometry.ellipse`.
+-- @function ellipse
+M.ellipse = geometry.ellipse
 
--- The index k of the last sample with time <= t (0 before the first).
-local function bracket(odometry, t)
-  local lo, hi = 0, #odometry
-  while lo < hi do
-    local mid = ceil(0.5 * (lo + hi))
-    if odometry[mid][1] <= t then lo = mid else hi = mid - 1 end
-  end
-  return lo
-end
-
--- The odometry at time t within its span, interpolated: x, y, yaw (nil outside the span).
-local function odometry_at(odometry, t)
-  local n = #odometry
-  if n == 0 or t < odometry[1][1] or t > odometry[n][1] then return nil end
-  local k = bracket(odometry, t)
-  local a, b = odometry[k], odometry[k + 1]
-  if not b or b[1] <= a[1] then return a[2], a[3], a[4] end
-  local f = (t - a[1]) / (b[1] - a[1])
-  local dyaw = b[4] - a[4]
-  dyaw = dyaw - 2 * pi * floor((dyaw + pi) / (2 * pi))
-  return a[2] + f * (b[2] - a[2]), a[3] + f * (b[3] - a[3]), a[4] + f * dyaw
-end
-
-local function row_ok(r)
-  local p = r.position
-  return p and is_finite(p.x) and is_finite(p.y) and is_finite(r.time)
-end
-
---- The rigid motion of the plane that best aligns the odometry with the path: `R(θ)·o + t`
--- nearest the rows' positions in least squares over the rows' times within the odometry's span
--- (the odometry interpolated linearly), in closed form: θ = atan2(Σ o'×p', Σ o'·p') of the
--- centred pairs, t = p̄ − R(θ)·ō. When the pairs do not spread (the robot stood still: their
--- spread below 1 mm) θ is the mean difference of the headings instead.
--- @tparam {table,...} rows the rows (see the module's header), in any order
--- @tparam {table,...} odometry the samples `{t, x, y, yaw}` in time order
--- @treturn table `{theta =, x =, y =, pairs =, rms =}`: θ (radians), t (m), the number of
---   times matched, the root mean square distance of the aligned pairs (m)
--- @return nil, string when no row's time falls within the odometry's span
-function M.align(rows, odometry)
-  local n, ox, oy, px, py = 0, 0, 0, 0, 0
-  for _, r in ipairs(rows) do
-    if row_ok(r) then
-      local x, y = odometry_at(odometry, r.time)
-      if x then
-        n = n + 1
-        ox, oy, px, py = ox + x, oy + y, px + r.position.x, py + r.position.y
-      end
-    end
-  end
-  if n == 0 then return nil, "localize_plot: no row within the odometry's times" end
-  ox, oy, px, py = ox / n, oy / n, px / n, py / n
-  local dot, cross, oo, pp, ys, yc = 0, 0, 0, 0, 0, 0
-  for _, r in ipairs(rows) do
-    if row_ok(r) then
-      local x, y, yaw = odometry_at(odometry, r.time)
-      if x then
-        local ax, ay = x - ox, y - oy
-        local bx, by = r.position.x - px, r.position.y - py
-        dot = dot + ax * bx + ay * by
-        cross = cross + ax * by - ay * bx
-        oo, pp = oo + ax * ax + ay * ay, pp + bx * bx + by * by
-        if is_finite(r.yaw) and is_finite(yaw) then
-          ys, yc = ys + sin(r.yaw - yaw), yc + cos(r.yaw - yaw)
-        end
-      end
-    end
-  end
-  local theta
-  if oo > n * 1e-6 and pp > n * 1e-6 then
-    theta = atan2(cross, dot)
-  else
-    theta = (ys ~= 0 or yc ~= 0) and atan2(ys, yc) or 0
-  end
-  local c, s = cos(theta), sin(theta)
-  local tx, ty = px - (c * ox - s * oy), py - (s * ox + c * oy)
-  local sq = 0 -- summed directly: oo + pp − 2(c·dot + s·cross) would lose its digits near 0
-  for _, r in ipairs(rows) do
-    if row_ok(r) then
-      local x, y = odometry_at(odometry, r.time)
-      if x then
-        local ex, ey = c * x - s * y + tx - r.position.x, s * x + c * y + ty - r.position.y
-        sq = sq + ex * ex + ey * ey
-      end
-    end
-  end
-  return { theta = theta, x = tx, y = ty, pairs = n, rms = sqrt(sq / n) }
-end
+--- The rigid motion that best aligns the odometry with the path: `localize_geometry.align`.
+-- @function align
+M.align = geometry.align
 
 -- The count of rows that rejected each id, of rows that saw it (used or rejected), and the
 -- ids rejected that are not on the map.
@@ -202,35 +110,6 @@ local function rejections(tags, rows)
   end
   table.sort(absent, function(a, b) return tostring(a) < tostring(b) end)
   return count, seen, absent
-end
-
--- The bounds of the tags, the rows' positions and the extra points: x0, x1, y0, y1.
-local function bounds(tags, rows)
-  local x0, x1, y0, y1 = huge, -huge, huge, -huge
-  local function add(x, y)
-    if is_finite(x) and is_finite(y) then
-      x0, x1, y0, y1 = min(x0, x), max(x1, x), min(y0, y), max(y1, y)
-    end
-  end
-  for _, id in ipairs(tags.ids) do
-    local t = tags[id]
-    local h = 0.5 * (t.size or 0)
-    add(t.x - h * t.r[1], t.y - h * t.r[4])
-    add(t.x + h * t.r[1], t.y + h * t.r[4])
-  end
-  for _, r in ipairs(rows) do
-    if row_ok(r) then add(r.position.x, r.position.y) end
-  end
-  if x0 > x1 then x0, x1, y0, y1 = 0, 1, 0, 1 end
-  local m = M.MARGIN
-  return x0 - m, x1 + m, y0 - m, y1 + m
-end
-
--- The layout: the plot area and the scale (px per m).
-local function frame(x0, x1, y0, y1)
-  local s = min(M.MAX_WIDTH / (x1 - x0), M.MAX_HEIGHT / (y1 - y0))
-  return { x0 = x0, x1 = x1, y0 = y0, y1 = y1, s = s, width = s * (x1 - x0),
-    height = s * (y1 - y0) }
 end
 
 local function sx(a, x) return a.left + (x - a.x0) * a.s end
@@ -324,7 +203,7 @@ local function draw_path(out, a, rows)
   local runs, run, last, points = {}, nil, nil, 0
   local first_xy, last_xy
   for _, r in ipairs(rows) do
-    if row_ok(r) then
+    if has_position(r) then
       if not run or r.time - last > M.GAP then
         run = {}
         runs[#runs + 1] = run
@@ -362,7 +241,7 @@ local function draw_ellipses(out, a, rows, every)
   local lines, next_time = {}, -huge
   for _, r in ipairs(rows) do
     local c = r.covariance
-    if row_ok(r) and r.time >= next_time and c and c[1] and c[2] and is_finite(c[1][1])
+    if has_position(r) and r.time >= next_time and c and c[1] and c[2] and is_finite(c[1][1])
       and is_finite(c[1][2]) and is_finite(c[2][2]) then
       next_time = r.time + every
       local ea, eb, angle = M.ellipse(c[1][1], c[1][2], c[2][2])
@@ -456,7 +335,8 @@ function M.svg(tags, rows, odometry, options)
   local count, seen, absent = rejections(tags, rows)
   local al, why
   if odometry and #odometry > 0 then al, why = M.align(rows, odometry) end
-  local a = frame(bounds(tags, rows))
+  local x0, x1, y0, y1 = geometry.bounds(tags, rows, M.MARGIN)
+  local a = geometry.frame(x0, x1, y0, y1, M.MAX_WIDTH, M.MAX_HEIGHT)
   local margin = 16
   a.left = margin + 52
   local width = ceil(a.left + a.width + margin)
