@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # tagpose's whole check, as CI runs it: install what is missing (Debian packages), lint, run the
-# specs on every Lua, build the LDoc reference and check its links, lint the rockspecs, and check that the rockspec
-# installs the library that then loads.
+# specs on every Lua, build the LDoc reference and check its links, lint the rockspecs, and check
+# that the rockspec installs the library that then loads.
 # Ends with one line "N passed, N failed" summing every run.
 #
 #   ./test.sh            everything
