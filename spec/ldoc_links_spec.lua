@@ -1,6 +1,6 @@
 -- The LDoc reference has no broken link: bench/check_links.lua finds a link to a missing page or
 -- anchor (checked here on a small hand-made reference), and the reference config.ld builds has
--- none (the topics' GitHub links, `tracking.md#replaying-a-log` and `../src/tagpose/....lua`,
+-- none (the topics' GitHub links, `tracking.md#replaying-a-log` and `../src/tagpose/init.lua`,
 -- rewritten by config.ld's postprocess_html). The build runs once, with the #docs specs.
 local run = require("support.run")
 
