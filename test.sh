@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # tagpose's whole check, as CI runs it: install what is missing (Debian packages), lint, run the
-# specs on every Lua, build the LDoc reference, lint the rockspecs, and check that the rockspec
-# installs the library that then loads.
+# specs on every Lua, build the LDoc reference and check its links, lint the rockspecs, and check
+# that the rockspec installs the library that then loads.
 # Ends with one line "N passed, N failed" summing every run.
 #
 #   ./test.sh            everything
@@ -81,6 +81,8 @@ else
   echo "ldoc failed (exit $status)"
   fail 1
 fi
+echo "== every link of the API reference lands (a page, an #anchor)"
+if lua5.4 bench/check_links.lua "$doc/html"; then pass 1; else fail 1; fi
 rm -rf "$doc"
 
 for rockspec in rockspec/*.rockspec; do

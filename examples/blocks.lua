@@ -1,4 +1,5 @@
--- Block poses from a corner log, and (given the truth) the block-level figures of PEERS.md.
+-- Block poses from a corner log, and (given the truth) the block-level figures of
+-- bench/dev/PEERS.md.
 --
 --   lua5.4 examples/blocks.lua DATASET_DIR [--auto | --auto-floor | --up | --floor] [--track]
 --     [--out FILE]
@@ -13,7 +14,8 @@
 -- With truth it scores tagpose.block.solve five times - with nothing but the corners, with
 -- up = "auto" (up from the frame's blocks seen with two or more faces), with up = "auto" and
 -- floor = "auto" (the floor from them too), with an up vector, with an up vector and the floor
--- - and prints the table of PEERS.md beside the baseline's rows read from PEERS.md. --auto,
+-- - and prints the table of bench/dev/PEERS.md beside the baseline's rows read from it (or from
+-- the page --peers names; by default PEERS.md in the folder above DATASET_DIR). --auto,
 -- --auto-floor, --up and --floor score only the run with up = "auto", with both "auto", with
 -- up, with up and the floor (without truth --auto and --auto-floor run with those options
 -- instead of none); --track passes each frame's
@@ -28,9 +30,10 @@
 -- support is hidden would put it a block too high, which the solver's levels absorb). Nothing
 -- else of the truth reaches the solver.
 --
--- Scoring (as bench/score_blocks.py describes it in PEERS.md): per frame, predicted blocks are
--- matched to true ones by the most matches, then the least total centre distance, within half
--- a block; rotation error is the least over the cube's 24 symmetries, a flip is an error over
+-- Scoring, as bench/dev/PEERS.md describes the benchmark's (its scorer is not part of this
+-- repository; this file scores the same way): per frame, predicted blocks are matched to true
+-- ones by the most matches, then the least total centre distance, within half a block; rotation
+-- error is the least over the cube's 24 symmetries, a flip is an error over
 -- 30 degrees. An unmatched true block is "merged" when a prediction matched to another block
 -- lies within one block of it, else "missed". An unmatched prediction is a "split" of a found
 -- block within half a block of it, or within 1.25 blocks when the prediction is not between

@@ -230,15 +230,15 @@ end
 --   {fx = 883.98, fy = 883.98, cx = 319.5, cy = 239.5}, 0.024)
 function M.solve(corners, camera, tag_size, options)
   local w = work
-  local bad, problem = args.read_corners(corners, w.px, opencv_order(options))
-  if not bad then arg_error(1, problem) end
+  local read, problem = args.read_corners(corners, w.px, opencv_order(options))
+  if not read then arg_error(1, problem) end
   problem = camera_model.check(camera)
   if problem then arg_error(2, problem) end
   problem = args.check_size(tag_size, "tag_size")
   if problem then arg_error(3, problem) end
   local method, tol, max_it, prior, into, sigma, time = read_options(options)
   if not method then arg_error(4, tol) end
-  if bad ~= true then return nil, "tagpose: corner " .. bad .. " is not finite" end
+  if read ~= true then return nil, "tagpose: corner " .. read .. " is not finite" end
   local ok, why = pipeline.prepare(w, camera)
   if not ok then return nil, why end
   local half = 0.5 * tag_size

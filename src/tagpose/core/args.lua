@@ -110,7 +110,7 @@ function M.read_corners(corners, out, opencv)
     while n < 1000 and corners[n + 1] ~= nil do n = n + 1 end
     return false, "four corners expected, got " .. (n == 1000 and "1000 or more" or tostring(n))
   end
-  local bad = true
+  local first_nonfinite
   for i = 1, 4 do
     local c = corners[i]
     if type(c) ~= "table" then
@@ -124,12 +124,12 @@ function M.read_corners(corners, out, opencv)
         .. M.describe(u) .. " and " .. M.describe(v)
     end
     -- finite exactly when u - u is 0 (NaN and ±inf give NaN)
-    if bad == true and not (u - u == 0 and v - v == 0) then bad = i end
+    if not first_nonfinite and not (u - u == 0 and v - v == 0) then first_nonfinite = i end
     -- as floats: integer pixels near math.mininteger would wrap around in u - cx (Lua 5.3+)
     local k = opencv and 5 - i or i
     out[2 * k - 1], out[2 * k] = u + 0.0, v + 0.0
   end
-  return bad
+  return first_nonfinite or true
 end
 
 -- Levenshtein distance of two short strings, with an early exit above `cap`.

@@ -269,26 +269,6 @@ end
 
 local spd6 = M.spd6
 
---- The inverse of the 6×6 matrix H of normal equations (their first 21 numbers, the upper
--- triangle), by `spd6` column by column.
--- @tparam {number,...} N normal equations (the module's layout; only H is read)
--- @tparam[opt] {number,...} out flat 6×6 to fill, row-major
--- @treturn {number,...} out
--- @return nil when H is not positive definite to working precision
-function M.invert6(N, out)
-  out = out or {}
-  for k = 1, 6 do
-    local x1, x2, x3, x4, x5, x6 = spd6(N[1], N[2], N[3], N[4], N[5], N[6], N[7], N[8], N[9],
-      N[10], N[11], N[12], N[13], N[14], N[15], N[16], N[17], N[18], N[19], N[20], N[21],
-      k == 1 and 1 or 0, k == 2 and 1 or 0, k == 3 and 1 or 0, k == 4 and 1 or 0,
-      k == 5 and 1 or 0, k == 6 and 1 or 0)
-    if not x1 then return nil end
-    out[k], out[6 + k], out[12 + k], out[18 + k], out[24 + k], out[30 + k] = x1, x2, x3, x4, x5,
-      x6
-  end
-  return out
-end
-
 --- The damped Gauss-Newton step of the normal equations N, the damping raised (×10) from
 -- `lambda` until the system solves (the diagonal of H scaled by `1 + lambda`).
 -- @tparam {number,...} N normal equations (the module's layout)

@@ -266,24 +266,4 @@ function M.apply(P, S, D, T)
   return T
 end
 
---- The largest move a step gives a corner of a tag on the body (length units): the size of
--- the step in the layout.
--- @tparam table P the problem
--- @tparam table S the state stepped from
--- @tparam table D the step
--- @treturn number
-function M.tag_move(P, S, D)
-  local y, most = D.y, 0
-  for i = 1, P.ntags do
-    local o = 6 * (i - 1)
-    local r = sqrt((y[o + 1] * y[o + 1]) + (y[o + 2] * y[o + 2]) + (y[o + 3] * y[o + 3]))
-    local t = sqrt((y[o + 4] * y[o + 4]) + (y[o + 5] * y[o + 5]) + (y[o + 6] * y[o + 6]))
-    local p = S.tp
-    local px, py, pz = p[3 * i - 2], p[3 * i - 1], p[3 * i]
-    local v = t + r * (sqrt(px * px + py * py + pz * pz) + P.half[i] * 1.5)
-    if v > most then most = v end
-  end
-  return most
-end
-
 return M

@@ -11,8 +11,9 @@
 --              table id,size,x,y,z,qw,qx,qy,qz (.csv)
 -- --cube       instead: a cube of side BLOCK_SIZE with tags 0-5 of side TAG_SIZE centred on
 --              its faces +x, -x, +y, -y, +z, -z (tagpose.layout.cube)
--- --camera     a camera file (a Lua camera file, ROS camera_calibration or CameraInfo YAML, OpenCV
---              FileStorage: tagpose.calibration); default camera.lua beside LOG.csv
+-- --camera     a camera file (tagpose.calibration): a Lua camera file, ROS camera_calibration
+--              or CameraInfo YAML, OpenCV FileStorage YAML, XML or JSON, or a Kalibr camchain
+--              (its cam0); default camera.lua beside LOG.csv
 -- --out        write the calibrated layout, in the format its extension names
 -- --unit       the unit of the layout's lengths (default m): corrections are printed in mm
 --              for m, cm and mm, else in the unit

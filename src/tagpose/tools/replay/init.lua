@@ -10,8 +10,8 @@
 --              seconds; further columns ignored; blank lines and lines starting with #
 --              skipped; see tagpose.tools.log)
 -- --camera     a calibration file (tagpose.calibration): a Lua camera file (read as data),
---              ROS camera_calibration or CameraInfo YAML, or OpenCV FileStorage YAML; default:
---              camera.lua beside LOG.csv
+--              ROS camera_calibration or CameraInfo YAML, OpenCV FileStorage YAML, XML or
+--              JSON, or a Kalibr camchain (its cam0); default: camera.lua beside LOG.csv
 -- --tag-size   the side of the tag's black square, optionally with its unit (0.024, 24mm);
 --              default: the camera file's tag_size (a number, or {[id] = size, default =
 --              size}). Poses come out in its unit; the plot's axes name it (--unit overrides)
