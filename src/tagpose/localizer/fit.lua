@@ -315,6 +315,8 @@ M.invert = invert
 
 -- lsq order (δω, δt) → the contract's (δt, δω)
 local ORDER = { 4, 5, 6, 1, 2, 3 }
+-- the rows of x, y and the heading in lsq order
+local SENS_ROWS = { 4, 5, 3 }
 
 --- The covariance of a fit (after `fit`): the information's inverse plus the mount's and the
 -- map's errors carried through, and the per-tag χ² of the residuals.
@@ -328,6 +330,9 @@ local ORDER = { 4, 5, 6, 1, 2, 3 }
 --   each error over its three axes (m, rad, m; 0: none), each axis σ/√3
 -- @treturn {number,...} the 6×6 covariance, flat row-major, (x, y, z, rx, ry, rz)
 -- @treturn {number,...} its part from the corners' noise alone (the information's inverse)
+-- @treturn table the sensitivities of (x, y, heading) to the errors, each over its σ per axis
+--   (so that their covariance is `S Sᵀ`): `mount` (3×6, the frame's camera: turn then shift,
+--   robot frame), `tags` (`[id]` = 3×3, the tag's place)
 -- @return nil when the information is singular
 function M.covariance(obs, n, active, pr, pose, sigma, nuisance)
   local r, t = pose.r, pose.t
@@ -405,7 +410,28 @@ function M.covariance(obs, n, active, pr, pose, sigma, nuisance)
       out[(a - 1) * 6 + b] = s
     end
   end
-  return out, noise
+  -- the sensitivities of x, y and the heading to each error, over its σ per axis: the solution
+  -- moves by −H⁻¹ G δb (x, y, heading: lsq rows 4, 5, 3)
+  local sens = { mount = {}, tags = {} }
+  local function rows(g, cols, scale, into)
+    for j = 1, 3 do
+      local rr = SENS_ROWS[j]
+      for c = 1, cols do
+        local v = 0
+        for k = 1, 6 do v = v + Hi[(rr - 1) * 6 + k] * g[(k - 1) * cols + c] end
+        into[(j - 1) * cols + c] = -v * scale(c)
+      end
+    end
+    return into
+  end
+  local gm1 = mounts[1]
+  if gm1 then rows(gm1, 6, function(c) return c <= 3 and sa or sp end, sens.mount) end
+  for i = 1, n do
+    local o = obs[i]
+    local si = o.map_sigma and o.map_sigma / SQRT3 or sm
+    if active[i] then sens.tags[o.id] = rows(o.gtag, 3, function() return si end, {}) end
+  end
+  return out, noise, sens
 end
 
 return M

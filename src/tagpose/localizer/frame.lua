@@ -285,14 +285,14 @@ function M.solve(obs, n, pr, sigma, nuisance, start, distrust)
     end
     return nil, rejected
   end
-  local cov, noise = fit.covariance(obs, n, active, pr, pose, sigma, nuisance)
+  local cov, noise, sens = fit.covariance(obs, n, active, pr, pose, sigma, nuisance)
   if not cov then return nil, rejected end
   local used = {}
   for i = 1, n do
     if active[i] then used[#used + 1] = obs[i].id end
   end
-  return { pose = pose, covariance = cov, noise = noise, used = used, rejected = rejected,
-    chi2 = chi2, kept = nkept, active = active, loo = loo }
+  return { pose = pose, covariance = cov, noise = noise, sens = sens, used = used,
+    rejected = rejected, chi2 = chi2, kept = nkept, active = active, loo = loo }
 end
 
 --- The other minimum of a solved frame: the best fit of the same tags from the starts that
