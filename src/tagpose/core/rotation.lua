@@ -2,17 +2,121 @@
 --
 -- A rotation matrix is a flat, row-major, 1-based array of nine numbers:
 -- `{r11, r12, r13, r21, r22, r23, r31, r32, r33}`. Its columns are the images of the source
--- frame's axes. Quaternions are passed as four numbers `w, x, y, z` (scalar first) and returned
+-- frame's axes. Every function also takes the nested `r[row][col]` matrices tagpose returns
+-- (`pose.rotation`), and answers a matrix in the shape it was given (the shape of `out` when
+-- given, else of its first matrix). Quaternions are passed as four numbers `w, x, y, z`
+-- (scalar first; `from_quaternion` also takes a pose's `{w =, x =, y =, z =}`) and returned
 -- unit with `w >= 0`. Angles are radians. Functions that fill an `out` array read all their
--- inputs first, so `out` may be one of the inputs.
+-- inputs first, so `out` may be one of the inputs. Misuse (a matrix that is not nine finite
+-- numbers, a quaternion that is not four) raises `bad argument #n to 'name' (...)`.
 -- @module tagpose.core.rotation
 
 local compat = require("tagpose.core.compat")
+local args = require("tagpose.core.args")
 
-local sqrt, sin, cos, asin = math.sqrt, math.sin, math.cos, math.asin
+local sqrt, sin, cos, asin, abs, max = math.sqrt, math.sin, math.cos, math.asin, math.abs,
+  math.max
 local atan2, is_finite = compat.atan2, compat.is_finite
 
 local M = {}
+
+-- The checked route of the functions below, taken only when an argument is not a flat array
+-- of numbers: nested matrices are read flat (into scratch arrays, never handed out), misuse
+-- raises at the caller of the public function.
+
+local scratch_a, scratch_b = {}, {}
+
+-- Is m a flat matrix (the fast route), and is out nil or flat?
+local function flat(m)
+  return type(m) == "table" and type(m[1]) == "number" and type(m[9]) == "number"
+end
+local function flat_out(out)
+  return out == nil or (type(out) == "table" and type(out[1]) ~= "table")
+end
+
+-- Matrix argument n of fname, flat (into scratch), or raise at the caller of fname.
+local function matrix(m, n, fname, scratch)
+  if M.read(m, scratch) then return scratch end
+  args.raise(n, fname, "3x3 matrix expected: nested {{r11, r12, r13}, {r21, r22, r23}, "
+    .. "{r31, r32, r33}} or flat {r11, ..., r33} of finite numbers, got " .. args.describe(m)
+    .. (type(m) == "table" and " (not nine finite numbers)" or ""), 3)
+end
+
+-- An `out` argument (position n of fname): nil, or a table.
+local function check_out(out, n, fname)
+  if out ~= nil and type(out) ~= "table" then
+    args.raise(n, fname, "table expected for out, got " .. type(out), 3)
+  end
+end
+
+-- A result r (flat, fresh) in the shape asked: into out (nested or flat), else nested when the
+-- first matrix was.
+local function shaped(r, out, nested)
+  if r == nil then return nil end
+  if out ~= nil then
+    if type(out[1]) == "table" then return M.to_nested(r, out) end
+    for i = 1, 9 do out[i] = r[i] end
+    return out
+  end
+  if nested then return M.to_nested(r) end
+  return r
+end
+
+local function is_nested(m)
+  return type(m) == "table" and type(m[1]) == "table"
+end
+
+-- f(a, [b,] out) through the checked route.
+local function unary(f, fname, r, out)
+  local nested = is_nested(r)
+  r = matrix(r, 1, fname, scratch_a)
+  check_out(out, 2, fname)
+  local res, why = f(r, {})
+  if res == nil then return nil, why end
+  return shaped(res, out, nested)
+end
+
+local function binary(f, fname, a, b, out)
+  local nested = is_nested(a)
+  a = matrix(a, 1, fname, scratch_a)
+  b = matrix(b, 2, fname, scratch_b)
+  check_out(out, 3, fname)
+  return shaped(f(a, b, {}), out, nested)
+end
+
+-- Quaternion arguments of fname (four numbers, or a table {w =, x =, y =, z =} and the next
+-- argument), or raise.
+local function quaternion_args(fname, w, x, y, z, out)
+  if type(w) == "table" then w, x, y, z, out = w.w, w.x, w.y, w.z, x end
+  if not (is_finite(w) and is_finite(x) and is_finite(y) and is_finite(z)) then
+    args.raise(1, fname, "quaternion expected: four finite numbers w, x, y, z or a table "
+      .. "{w =, x =, y =, z =}", 3)
+  end
+  if not M.unit_quaternion(w, x, y, z) then
+    args.raise(1, fname, "quaternion expected, got a zero one", 3)
+  end
+  check_out(out, 5, fname)
+  return w, x, y, z, out
+end
+
+--- A quaternion normalised without overflow or underflow: scaled by its largest component,
+-- then divided by its length.
+-- @tparam number w finite
+-- @tparam number x
+-- @tparam number y
+-- @tparam number z
+-- @treturn number|nil w, or nil when the quaternion's length is 1e-6 or less
+-- @treturn number x
+-- @treturn number y
+-- @treturn number z
+function M.unit_quaternion(w, x, y, z)
+  local m = max(abs(w), abs(x), abs(y), abs(z))
+  if not (m > 0) then return nil end
+  w, x, y, z = w / m, x / m, y / m, z / m
+  local n = sqrt(w * w + x * x + y * y + z * z) -- in [1, 2]
+  if not (m * n > 1e-6) then return nil end
+  return w / n, x / n, y / n, z / n
+end
 
 --- Quaternion of a rotation matrix by Shepperd's method (branch on the largest of the trace
 -- and the diagonal terms, so no square root of a small number is taken).
@@ -22,6 +126,7 @@ local M = {}
 -- @treturn number y
 -- @treturn number z
 function M.to_quaternion(r)
+  if not flat(r) then r = matrix(r, 1, "to_quaternion", scratch_a) end
   -- each branch reads only what it needs (LuaJIT cannot compile the exits of a version that
   -- loads all nine entries first: "register coalescing too complex")
   local r11, r22, r33 = r[1], r[5], r[9]
@@ -53,8 +158,20 @@ end
 -- @tparam[opt] {number,...} out array to fill (a new one if absent)
 -- @treturn {number,...} flat 3×3 rotation
 function M.from_quaternion(w, x, y, z, out)
+  if type(w) ~= "number" or type(x) ~= "number" or type(y) ~= "number" or type(z) ~= "number"
+    or not flat_out(out) then
+    w, x, y, z, out = quaternion_args("from_quaternion", w, x, y, z, out)
+    if out ~= nil and type(out[1]) == "table" then
+      return M.to_nested(M.from_quaternion(w, x, y, z), out)
+    end
+  end
   out = out or {}
   local n = sqrt(w * w + x * x + y * y + z * z)
+  if not (n > 1e-150 and n < 1e150) then
+    -- (a length that would overflow or underflow: normalised by the largest component first)
+    local uw, ux, uy, uz = M.unit_quaternion(w, x, y, z)
+    if uw then w, x, y, z, n = uw, ux, uy, uz, 1 end
+  end
   w, x, y, z = w / n, x / n, y / n, z / n
   out[1] = 1 - 2 * (y * y + z * z)
   out[2] = 2 * (x * y - w * z)
@@ -76,6 +193,7 @@ end
 -- @treturn number wy
 -- @treturn number wz
 function M.to_rotation_vector(r)
+  if not flat(r) then r = matrix(r, 1, "to_rotation_vector", scratch_a) end
   local w, x, y, z = M.to_quaternion(r)
   local s = sqrt(x * x + y * y + z * z)
   if s == 0 then return 0, 0, 0 end
@@ -91,6 +209,16 @@ end
 -- @tparam[opt] {number,...} out array to fill
 -- @treturn {number,...} flat 3×3 rotation
 function M.from_rotation_vector(wx, wy, wz, out)
+  if type(wx) ~= "number" or type(wy) ~= "number" or type(wz) ~= "number"
+    or not flat_out(out) then
+    local bad = not is_finite(wx) and 1 or not is_finite(wy) and 2 or not is_finite(wz) and 3
+    if bad then
+      args.raise(bad, "from_rotation_vector", "finite number expected, got "
+        .. args.describe(select(bad, wx, wy, wz)), 2)
+    end
+    check_out(out, 4, "from_rotation_vector")
+    return M.to_nested(M.from_rotation_vector(wx, wy, wz), out)
+  end
   out = out or {}
   local t2 = wx * wx + wy * wy + wz * wz
   local a, b
@@ -122,6 +250,9 @@ end
 -- @tparam[opt] {number,...} out array to fill (may be `a` or `b`)
 -- @treturn {number,...} out
 function M.multiply(a, b, out)
+  if not (flat(a) and flat(b) and flat_out(out)) then
+    return binary(M.multiply, "multiply", a, b, out)
+  end
   out = out or {}
   local a1, a2, a3, a4, a5, a6, a7, a8, a9 = a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9]
   local b1, b2, b3, b4, b5, b6, b7, b8, b9 = b[1], b[2], b[3], b[4], b[5], b[6], b[7], b[8], b[9]
@@ -143,6 +274,9 @@ end
 -- @tparam[opt] {number,...} out array to fill (may be `a` or `b`)
 -- @treturn {number,...} out
 function M.multiply_transpose(a, b, out)
+  if not (flat(a) and flat(b) and flat_out(out)) then
+    return binary(M.multiply_transpose, "multiply_transpose", a, b, out)
+  end
   out = out or {}
   local a1, a2, a3, a4, a5, a6, a7, a8, a9 = a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9]
   local b1, b2, b3, b4, b5, b6, b7, b8, b9 = b[1], b[2], b[3], b[4], b[5], b[6], b[7], b[8], b[9]
@@ -161,6 +295,9 @@ end
 -- @tparam[opt] {number,...} out array to fill (may be `a` or `b`)
 -- @treturn {number,...} out
 function M.transpose_multiply(a, b, out)
+  if not (flat(a) and flat(b) and flat_out(out)) then
+    return binary(M.transpose_multiply, "transpose_multiply", a, b, out)
+  end
   out = out or {}
   local a1, a2, a3, a4, a5, a6, a7, a8, a9 = a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9]
   local b1, b2, b3, b4, b5, b6, b7, b8, b9 = b[1], b[2], b[3], b[4], b[5], b[6], b[7], b[8], b[9]
@@ -178,6 +315,7 @@ end
 -- @tparam[opt] {number,...} out array to fill (may be `r`)
 -- @treturn {number,...} out
 function M.transpose(r, out)
+  if not (flat(r) and flat_out(out)) then return unary(M.transpose, "transpose", r, out) end
   out = out or {}
   local r2, r3, r4, r6, r7, r8 = r[2], r[3], r[4], r[6], r[7], r[8]
   out[1], out[5], out[9] = r[1], r[5], r[9]
@@ -192,6 +330,9 @@ end
 -- @tparam {number,...} b flat 3×3 rotation
 -- @treturn number angle in radians
 function M.angle(a, b)
+  if not (flat(a) and flat(b)) then
+    a, b = matrix(a, 1, "angle", scratch_a), matrix(b, 2, "angle", scratch_b)
+  end
   local s = 0
   for i = 1, 9 do
     local d = a[i] - b[i]
@@ -210,6 +351,11 @@ end
 -- @treturn {number,...} out
 -- @return nil, string when columns 1 and 2 are zero or parallel
 function M.orthonormalise(r, out)
+  -- (columns 1 and 2 only are read: the flat route takes a third column unset)
+  if not (type(r) == "table" and type(r[1]) == "number" and type(r[8]) == "number"
+    and flat_out(out)) then
+    return unary(M.orthonormalise, "orthonormalise", r, out)
+  end
   local x1, x2, x3 = r[1], r[4], r[7]
   local y1, y2, y3 = r[2], r[5], r[8]
   local nx = sqrt(x1 * x1 + x2 * x2 + x3 * x3)
@@ -245,6 +391,8 @@ end
 -- @tparam[opt] table out nested table to fill
 -- @treturn table nested rows
 function M.to_nested(r, out)
+  if not flat(r) then r = matrix(r, 1, "to_nested", scratch_a) end
+  check_out(out, 2, "to_nested")
   out = out or {}
   local r1, r2, r3 = out[1] or {}, out[2] or {}, out[3] or {}
   r1[1], r1[2], r1[3] = r[1], r[2], r[3]
@@ -259,8 +407,18 @@ end
 -- @tparam[opt] {number,...} out array to fill
 -- @treturn {number,...} flat 3×3
 function M.from_nested(m, out)
+  local m1, m2, m3 = type(m) == "table" and m[1], type(m) == "table" and m[2],
+    type(m) == "table" and m[3]
+  if not (type(m1) == "table" and type(m2) == "table" and type(m3) == "table"
+    and type(m1[1]) == "number" and type(m3[3]) == "number") or not flat_out(out) then
+    m = matrix(m, 1, "from_nested", scratch_a)
+    check_out(out, 2, "from_nested")
+    m1, m2, m3 = { m[1], m[2], m[3] }, { m[4], m[5], m[6] }, { m[7], m[8], m[9] }
+    if out ~= nil and type(out[1]) == "table" then
+      return M.to_nested(M.from_nested({ m1, m2, m3 }), out)
+    end
+  end
   out = out or {}
-  local m1, m2, m3 = m[1], m[2], m[3]
   out[1], out[2], out[3] = m1[1], m1[2], m1[3]
   out[4], out[5], out[6] = m2[1], m2[2], m2[3]
   out[7], out[8], out[9] = m3[1], m3[2], m3[3]
@@ -300,8 +458,6 @@ end
 -- fixed z). Unlike the functions above these are entry points of their own
 -- (`tagpose.rotation.to_rpy`, `from_rpy`), so they check their arguments.
 
-local args = require("tagpose.core.args")
-
 --- Below this `cos(pitch)` (the length of R's first column's x, y part) `to_rpy` is at gimbal
 -- lock: roll and yaw turn about one axis there, so yaw is set to 0 and roll carries the turn
 -- (as tf2's `getRPY`). The rotation it describes is still R to 2·10⁻¹³.
@@ -337,6 +493,7 @@ end
 -- @treturn number the largest entry of `|R·Rᵀ - I|`
 -- @treturn number det R
 function M.deviation(r)
+  if not flat(r) then r = matrix(r, 1, "deviation", scratch_a) end
   local worst = 0
   for i = 0, 6, 3 do
     for j = 0, 6, 3 do
@@ -383,7 +540,11 @@ function M.to_rpy(r)
   return roll, atan2(-r31, h), yaw
 end
 
+local TWO_PI = 2 * math.pi
+local degrees_said = false -- whether from_rpy said once that its angles look like degrees
+
 --- The rotation of roll, pitch and yaw, `R = Rz(yaw)·Ry(pitch)·Rx(roll)` (ROS's convention).
+-- Angles beyond ±2π are taken as given, and said once on standard error (degrees?).
 -- @tparam number roll radians, about x
 -- @tparam number pitch radians, about y
 -- @tparam number yaw radians, about z
@@ -398,6 +559,12 @@ function M.from_rpy(roll, pitch, yaw)
   if bad then
     args.raise(bad, "from_rpy", "finite number expected, got "
       .. args.describe(select(bad, roll, pitch, yaw)), 2)
+  end
+  if not degrees_said and (abs(roll) > TWO_PI or abs(pitch) > TWO_PI or abs(yaw) > TWO_PI) then
+    degrees_said = true
+    io.stderr:write("tagpose.rotation: warning: from_rpy(", tostring(roll), ", ",
+      tostring(pitch), ", ", tostring(yaw), "): an angle beyond ±2π is not radians (degrees?"
+      .. " math.rad(30) is 30°)\n")
   end
   local cr, sr, cp, sp, cy, sy = cos(roll), sin(roll), cos(pitch), sin(pitch), cos(yaw), sin(yaw)
   return {

@@ -21,7 +21,7 @@ local args = require("tagpose.core.args")
 local rotation = require("tagpose.core.rotation")
 
 local is_finite, is_positive, describe = compat.is_finite, args.is_positive, args.describe
-local sqrt, floor, abs, max = math.sqrt, math.floor, math.abs, math.max
+local floor = math.floor
 
 local M = {}
 
@@ -63,7 +63,8 @@ function M.is_id(id)
 end
 
 --- A quaternion normalised without overflow or underflow: scaled by its largest component,
--- then divided by its length.
+-- then divided by its length (`tagpose.core.rotation.unit_quaternion`).
+-- @function unit_quaternion
 -- @tparam number w finite
 -- @tparam number x
 -- @tparam number y
@@ -72,14 +73,7 @@ end
 -- @treturn number x
 -- @treturn number y
 -- @treturn number z
-function M.unit_quaternion(w, x, y, z)
-  local m = max(abs(w), abs(x), abs(y), abs(z))
-  if not (m > 0) then return nil end
-  w, x, y, z = w / m, x / m, y / m, z / m
-  local n = sqrt(w * w + x * x + y * y + z * z) -- in [1, 2]
-  if not (m * n > 1e-6) then return nil end
-  return w / n, x / n, y / n, z / n
-end
+M.unit_quaternion = rotation.unit_quaternion
 
 --- Read one tag entry of a layout.
 -- @tparam any entry `{size =, position =, quaternion =}`
