@@ -63,9 +63,13 @@ M.Tracker = Tracker
 
 local OPTIONS = { "method", "max_gap", "max_tracks", "smooth", "sigma", "order" }
 
-local function raise(n, fname, message)
-  args.raise(n, fname, message, 3)
+-- Raise a misuse at the caller of the entry point (`depth`: the helpers between them).
+local function raise(n, fname, message, depth)
+  args.raise(n, fname, message, 3 + (depth or 0))
 end
+
+-- the call the corner-order hint names
+local CALL = "tagpose.tracker.new(camera, tag_size, options)"
 
 
 -- What is wrong with a tag_size argument, or nil.
@@ -97,32 +101,36 @@ end
 local function read_options(self, options)
   if options == nil then options = {} end
   if type(options) ~= "table" then
-    raise(3, "new", "options table expected, got " .. type(options))
+    raise(3, "new", "options table expected, got " .. type(options), 1)
   end
   local unknown = args.unknown_keys(options, OPTIONS, "options")
-  if unknown then raise(3, "new", unknown) end
+  if unknown then raise(3, "new", unknown, 1) end
   local method = options.method
   if method ~= nil and method ~= "refined" and method ~= "seed" then
-    raise(3, "new", "options.method: 'refined' or 'seed' expected, got " .. describe(method))
+    raise(3, "new", "options.method: 'refined' or 'seed' expected, got " .. describe(method), 1)
   end
   local max_gap = options.max_gap == nil and M.MAX_GAP or options.max_gap
   if not (is_finite(max_gap) and max_gap >= 0) then
-    raise(3, "new", "options.max_gap: non-negative number expected, got " .. describe(max_gap))
+    raise(3, "new", "options.max_gap: non-negative number expected, got " .. describe(max_gap), 1)
   end
   local max_tracks = options.max_tracks == nil and M.MAX_TRACKS or options.max_tracks
   if not args.is_count(max_tracks) then
     raise(3, "new", "options.max_tracks: positive integer expected, got "
-      .. describe(max_tracks))
+      .. describe(max_tracks), 1)
   end
   local sigma = options.sigma
   if sigma ~= nil and not args.is_positive(sigma) then
-    raise(3, "new", "options.sigma: positive number expected, got " .. describe(sigma))
+    raise(3, "new", "options.sigma: positive number expected, got " .. describe(sigma), 1)
   end
-  local order = options.order
-  if order ~= nil and order ~= "apriltag" and order ~= "opencv" then
-    raise(3, "new", "options.order: 'apriltag' or 'opencv' expected, got " .. describe(order))
+  local opencv, why = args.read_order(options.order)
+  if opencv == nil then raise(3, "new", why, 1) end
+  -- (a gap beyond the filter's longest step is a time in milliseconds: said, not refused)
+  if max_gap > track.MAX_STEP then
+    io.stderr:write(("tagpose.tracker: warning: options.max_gap is %.4g s, beyond the longest"
+      .. " step the tracking filter models (%g s): milliseconds? (max_gap is in seconds: 0.5,"
+      .. " not 500)\n"):format(max_gap, track.MAX_STEP))
   end
-  self.opencv = order == "opencv"
+  self.opencv = opencv
   self.seed, self.max_gap, self.max_tracks = method == "seed", max_gap, max_tracks
   self.sigma2 = sigma and sigma * sigma or nil
   self.recording = options.smooth == true
@@ -299,7 +307,7 @@ local function detection(self, i, id, t, time, row, entry)
     if self.recording then smooth.record(self.recorded, row, t.row, first, a, b) end
     t.row = row
   else
-    entry.reason = first
+    entry.reason = args.name_order(first, CALL)
   end
   return true
 end
@@ -327,17 +335,14 @@ local EMPTY = {}
 local function feed(self, detections, time, fname, solving)
   if detections == nil then detections = EMPTY end
   if type(detections) ~= "table" then
-    args.raise(1, fname, "array of detections expected, got " .. type(detections), 4)
+    args.raise(1, fname, "array of detections expected, got " .. type(detections), 3)
   end
-  if detections.corners ~= nil then
-    args.raise(1, fname, "array of detections expected, got one detection {id =, corners =} "
-      .. "(pass {detection})", 4)
-  end
+  if args.is_detection(detections) then args.raise(1, fname, args.ONE_DETECTION, 3) end
   if time ~= nil and not is_finite(time) then
-    args.raise(2, fname, "finite number expected for time, got " .. describe(time), 4)
+    args.raise(2, fname, "finite number expected for time, got " .. describe(time), 3)
   end
   local problem = camera_model.check(self.camera)
-  if problem then args.raise(0, fname, "the tracker's camera was changed: " .. problem, 4) end
+  if problem then args.raise(0, fname, "the tracker's camera was changed: " .. problem, 3) end
   self.solving = solving
   -- (room for one entry, the common frame, made with the array: filled key by key a table's
   -- parts grow through a resize at each power of two; the entries are made with all their keys)
@@ -348,6 +353,11 @@ local function feed(self, detections, time, fname, solving)
     seen.restarted = true
   end
   if self.time then seen.warning = cadence(self, time - self.time) end
+  -- said on standard error too, once per tracker (the caller may never look at `warning`)
+  if seen.warning and not self.warned then
+    self.warned = true
+    io.stderr:write("tagpose.tracker: warning: ", (seen.warning:gsub("^tracker: ", "")), "\n")
+  end
   self.time = time
   self.frames = self.frames + 1
   tracks.expire(self.live, time, self.max_gap)
