@@ -34,18 +34,19 @@ local function flat_out(out)
   return out == nil or (type(out) == "table" and type(out[1]) ~= "table")
 end
 
--- Matrix argument n of fname, flat (into scratch), or raise at the caller of fname.
-local function matrix(m, n, fname, scratch)
+-- Matrix argument n of fname, flat (into scratch), or raise at the caller of fname (`depth`:
+-- the helpers between them).
+local function matrix(m, n, fname, scratch, depth)
   if M.read(m, scratch) then return scratch end
   args.raise(n, fname, "3x3 matrix expected: nested {{r11, r12, r13}, {r21, r22, r23}, "
     .. "{r31, r32, r33}} or flat {r11, ..., r33} of finite numbers, got " .. args.describe(m)
-    .. (type(m) == "table" and " (not nine finite numbers)" or ""), 3)
+    .. (type(m) == "table" and " (not nine finite numbers)" or ""), 3 + (depth or 0))
 end
 
 -- An `out` argument (position n of fname): nil, or a table.
-local function check_out(out, n, fname)
+local function check_out(out, n, fname, depth)
   if out ~= nil and type(out) ~= "table" then
-    args.raise(n, fname, "table expected for out, got " .. type(out), 3)
+    args.raise(n, fname, "table expected for out, got " .. type(out), 3 + (depth or 0))
   end
 end
 
@@ -66,11 +67,12 @@ local function is_nested(m)
   return type(m) == "table" and type(m[1]) == "table"
 end
 
--- f(a, [b,] out) through the checked route.
+-- f(a, [b,] out) through the checked route. (Called, never tail-called, by the public
+-- function: Lua 5.1 counts a tail call as a level of its own.)
 local function unary(f, fname, r, out)
   local nested = is_nested(r)
-  r = matrix(r, 1, fname, scratch_a)
-  check_out(out, 2, fname)
+  r = matrix(r, 1, fname, scratch_a, 1)
+  check_out(out, 2, fname, 1)
   local res, why = f(r, {})
   if res == nil then return nil, why end
   return shaped(res, out, nested)
@@ -78,9 +80,9 @@ end
 
 local function binary(f, fname, a, b, out)
   local nested = is_nested(a)
-  a = matrix(a, 1, fname, scratch_a)
-  b = matrix(b, 2, fname, scratch_b)
-  check_out(out, 3, fname)
+  a = matrix(a, 1, fname, scratch_a, 1)
+  b = matrix(b, 2, fname, scratch_b, 1)
+  check_out(out, 3, fname, 1)
   return shaped(f(a, b, {}), out, nested)
 end
 
@@ -251,7 +253,8 @@ end
 -- @treturn {number,...} out
 function M.multiply(a, b, out)
   if not (flat(a) and flat(b) and flat_out(out)) then
-    return binary(M.multiply, "multiply", a, b, out)
+    local res = binary(M.multiply, "multiply", a, b, out)
+    return res
   end
   out = out or {}
   local a1, a2, a3, a4, a5, a6, a7, a8, a9 = a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9]
@@ -275,7 +278,8 @@ end
 -- @treturn {number,...} out
 function M.multiply_transpose(a, b, out)
   if not (flat(a) and flat(b) and flat_out(out)) then
-    return binary(M.multiply_transpose, "multiply_transpose", a, b, out)
+    local res = binary(M.multiply_transpose, "multiply_transpose", a, b, out)
+    return res
   end
   out = out or {}
   local a1, a2, a3, a4, a5, a6, a7, a8, a9 = a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9]
@@ -296,7 +300,8 @@ end
 -- @treturn {number,...} out
 function M.transpose_multiply(a, b, out)
   if not (flat(a) and flat(b) and flat_out(out)) then
-    return binary(M.transpose_multiply, "transpose_multiply", a, b, out)
+    local res = binary(M.transpose_multiply, "transpose_multiply", a, b, out)
+    return res
   end
   out = out or {}
   local a1, a2, a3, a4, a5, a6, a7, a8, a9 = a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9]
@@ -315,7 +320,10 @@ end
 -- @tparam[opt] {number,...} out array to fill (may be `r`)
 -- @treturn {number,...} out
 function M.transpose(r, out)
-  if not (flat(r) and flat_out(out)) then return unary(M.transpose, "transpose", r, out) end
+  if not (flat(r) and flat_out(out)) then
+    local res = unary(M.transpose, "transpose", r, out)
+    return res
+  end
   out = out or {}
   local r2, r3, r4, r6, r7, r8 = r[2], r[3], r[4], r[6], r[7], r[8]
   out[1], out[5], out[9] = r[1], r[5], r[9]
@@ -354,7 +362,8 @@ function M.orthonormalise(r, out)
   -- (columns 1 and 2 only are read: the flat route takes a third column unset)
   if not (type(r) == "table" and type(r[1]) == "number" and type(r[8]) == "number"
     and flat_out(out)) then
-    return unary(M.orthonormalise, "orthonormalise", r, out)
+    local res, why = unary(M.orthonormalise, "orthonormalise", r, out)
+    return res, why
   end
   local x1, x2, x3 = r[1], r[4], r[7]
   local y1, y2, y3 = r[2], r[5], r[8]

@@ -216,7 +216,8 @@ local READ_OPTIONS = {
 -- @tparam string path
 -- @tparam[opt] string|table options `{bundle =, size =}`: `bundle` the name of the bundle to
 --   read from a `tags.yaml` of several (or that name alone, as a string); `size` the side of
---   the tags' black squares, which a WPILib field map needs (it has none)
+--   the tags' black squares, which a WPILib field map needs (it has none), in metres as the map
+--   (one larger than twice the map is refused: millimetres?)
 -- @treturn table layout
 -- @return nil, string when the file cannot be read or is not a layout (with its line)
 -- @raise `bad argument #n to 'read'` when path is not a string or an option is wrong

@@ -24,7 +24,8 @@
 -- four numbers per detection so that `tracker:smooth()` can revise every choice with the
 -- evidence of the later frames (`tagpose.tracker.smooth`): for replaying a recorded log.
 --
--- Times are in seconds; pixels as the camera's; lengths in the unit of the tag size.
+-- Times are in seconds (times that look like milliseconds are said once on standard error,
+-- and in `warning`); pixels as the camera's; lengths in the unit of the tag size.
 -- @module tagpose.tracker
 
 local args = require("tagpose.core.args")
@@ -146,7 +147,8 @@ end
 --
 --   - `method`: `"refined"` (the default) or `"seed"` (the report's method: one pose per tag,
 --     no tracking filter);
---   - `max_gap`: seconds a track may go unseen and still be continued (default `MAX_GAP`);
+--   - `max_gap`: seconds a track may go unseen and still be continued (default `MAX_GAP`;
+--     one beyond `tagpose.track.MAX_STEP` is said on standard error: milliseconds?);
 --   - `max_tracks`: bound on the live tracks (default `MAX_TRACKS`);
 --   - `sigma`: the corner noise in pixels, for the poses' `covariance` (default: each track's
 --     running estimate from its residuals; a new track's first pose, the single-frame default
@@ -399,7 +401,8 @@ end
 --   array's field `skipped` counts the entries skipped (malformed, or an id without a tag
 --   size; an entry whose corners give no pose has a track and a reason), `restarted` is true
 --   when the time went back, and `warning` says when the times look like milliseconds or frame
---   numbers (steps far beyond `max_gap` at a steady cadence)
+--   numbers (steps far beyond `max_gap` at a steady cadence; said on standard error too, the
+--   first time)
 -- @raise `bad argument #n to 'update' (...)` when `detections` is not an array (one detection
 --   passed alone included) or `time` not a finite number
 function Tracker:update(detections, time)
