@@ -100,6 +100,18 @@ describe("the same options everywhere", function()
       assert.truthy(why:find("{order = 'opencv'} in tagpose.layout.calibrate(", 1, true), why)
     end)
 
+    it("the localizer takes 'apriltag' as every other entry point does", function()
+      local cam = { fx = 700, fy = 705, cx = 330.2, cy = 236.8,
+        mount = { position = { x = 0, y = 0, z = 0.5 },
+          quaternion = { w = 0.5, x = -0.5, y = 0.5, z = -0.5 } } }
+      local map = { tags = { [1] = { size = 0.1651, position = { x = 3, y = 0, z = 0.5 },
+        quaternion = { w = 0.5, x = -0.5, y = 0.5, z = -0.5 } } } }
+      for _, order in ipairs({ "apriltag", "detector", "opencv" }) do
+        assert.is_nil((tagpose.localize({}, cam, map, { order = order })))
+      end
+      assert.has_error(function() tagpose.localize({}, cam, map, { order = "aruco" }) end)
+    end)
+
     it("the tracker's hint names tracker.new, where the option goes", function()
       local tr = tagpose.tracker.new(camera, SIZE)
       local seen = tr:update({ { id = 1, corners = opencv } }, 0)
