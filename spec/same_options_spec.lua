@@ -230,6 +230,22 @@ describe("the same options everywhere", function()
       assert.is_table(tagpose.layout.read(FIELD, { size = 0.1651 }))
       assert.is_table(tagpose.layout.read("bench/field/2024-crescendo.json", { size = 0.1651 }))
     end)
+
+    it("layout.read refuses a layout file whose sizes are millimetres beside metres", function()
+      local run = require("support.run")
+      local dir = run.tmpdir()
+      local head = "id,size,x,y,z,qw,qx,qy,qz\n"
+      local mm = run.write(dir .. "/mm.csv", head .. "0,24,0,0,-0.0275,1,0,0,0\n"
+        .. "1,24,0.0275,0,0,0.7071,0,-0.7071,0\n")
+      local none, why = tagpose.layout.read(mm)
+      assert.is_nil(none)
+      assert.truthy(why:find("millimetres", 1, true), why)
+      -- the same cube in metres, and in millimetres throughout
+      assert.is_table(tagpose.layout.read(run.write(dir .. "/m.csv", head
+        .. "0,0.024,0,0,-0.0275,1,0,0,0\n1,0.024,0.0275,0,0,0.7071,0,-0.7071,0\n")))
+      assert.is_table(tagpose.layout.read(run.write(dir .. "/all_mm.csv", head
+        .. "0,24,0,0,-27.5,1,0,0,0\n1,24,27.5,0,0,0.7071,0,-0.7071,0\n")))
+    end)
   end)
 
   describe("tagpose.rotation", function()

@@ -136,27 +136,11 @@ local function read_field(r, doc, lines)
   return v[1], v[2]
 end
 
---- A tag side larger than this many times the map's extent (the field's length and width,
--- the distance between the tags furthest apart) contradicts the map: a size in another unit
--- than the map's metres (165.1, millimetres, for 0.1651).
-M.SIZE_EXTENT = 2
-
--- The tags' size against the map's extent: a refusal when the size cannot be in metres.
+-- The tags' size against the map's extent (`tagpose.layout.model.size_contradiction`, the
+-- field's length and width included): a refusal when the size cannot be in metres.
 local function check_size(r, tags, length, width)
-  local extent, centres = math.max(length or 0, width or 0), {}
-  for _, t in pairs(tags) do centres[#centres + 1] = t.position end
-  local apart = 0
-  for i = 1, #centres do
-    local a = centres[i]
-    for j = i + 1, #centres do
-      local b = centres[j]
-      local dx, dy, dz = a.x - b.x, a.y - b.y, a.z - b.z
-      local d = math.sqrt(dx * dx + dy * dy + dz * dz)
-      if d > apart then apart = d end
-    end
-  end
-  if apart > extent then extent = apart end
-  if extent > 0 and r.size > M.SIZE_EXTENT * extent then
+  local id, _, extent = model.size_contradiction(tags, math.max(length or 0, width or 0))
+  if id ~= nil then
     failure.raise(("layout: %s: size %.6g is larger than the field map itself (%s%.4g m"
       .. " across): millimetres? A WPILib field map is in metres, and so is the tags' side"
       .. " (0.1651 for the 2024 and later FRC fields)"):format(r.name, r.size,
