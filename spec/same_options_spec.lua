@@ -281,10 +281,10 @@ describe("the same options everywhere", function()
 
     it("from_rpy says once that angles beyond ±2π look like degrees", function()
       -- a fresh copy of the module: the warning is once per module
-      local saved = package.loaded["tagpose.core.rotation"]
-      package.loaded["tagpose.core.rotation"] = nil
-      local fresh = require("tagpose.core.rotation")
-      package.loaded["tagpose.core.rotation"] = saved
+      local saved = package.loaded["tagpose.core.rpy"]
+      package.loaded["tagpose.core.rpy"] = nil
+      local fresh = require("tagpose.core.rpy")
+      package.loaded["tagpose.core.rpy"] = saved
       local text = stderr_of(function()
         fresh.from_rpy(0, math.rad(30), 0)
         fresh.from_rpy(0, 30, 0)

@@ -13,112 +13,23 @@
 
 local compat = require("tagpose.core.compat")
 local args = require("tagpose.core.args")
+local input = require("tagpose.core.rotation_input")
 
-local sqrt, sin, cos, asin, abs, max = math.sqrt, math.sin, math.cos, math.asin, math.abs,
-  math.max
+local sqrt, sin, cos, asin = math.sqrt, math.sin, math.cos, math.asin
 local atan2, is_finite = compat.atan2, compat.is_finite
+-- the checked route (`tagpose.core.rotation_input`): taken only when an argument is not a flat
+-- array of numbers
+local flat, flat_out, matrix, check_out = input.flat, input.flat_out, input.matrix,
+  input.check_out
+local unary, binary, quaternion_args = input.unary, input.binary, input.quaternion_args
+local scratch_a, scratch_b = {}, {} -- nested arguments read flat (never handed out)
 
 local M = {}
 
--- The checked route of the functions below, taken only when an argument is not a flat array
--- of numbers: nested matrices are read flat (into scratch arrays, never handed out), misuse
--- raises at the caller of the public function.
-
-local scratch_a, scratch_b = {}, {}
-
--- Is m a flat matrix (the fast route), and is out nil or flat?
-local function flat(m)
-  return type(m) == "table" and type(m[1]) == "number" and type(m[9]) == "number"
-end
-local function flat_out(out)
-  return out == nil or (type(out) == "table" and type(out[1]) ~= "table")
-end
-
--- Matrix argument n of fname, flat (into scratch), or raise at the caller of fname (`depth`:
--- the helpers between them).
-local function matrix(m, n, fname, scratch, depth)
-  if M.read(m, scratch) then return scratch end
-  args.raise(n, fname, "3x3 matrix expected: nested {{r11, r12, r13}, {r21, r22, r23}, "
-    .. "{r31, r32, r33}} or flat {r11, ..., r33} of finite numbers, got " .. args.describe(m)
-    .. (type(m) == "table" and " (not nine finite numbers)" or ""), 3 + (depth or 0))
-end
-
--- An `out` argument (position n of fname): nil, or a table.
-local function check_out(out, n, fname, depth)
-  if out ~= nil and type(out) ~= "table" then
-    args.raise(n, fname, "table expected for out, got " .. type(out), 3 + (depth or 0))
-  end
-end
-
--- A result r (flat, fresh) in the shape asked: into out (nested or flat), else nested when the
--- first matrix was.
-local function shaped(r, out, nested)
-  if r == nil then return nil end
-  if out ~= nil then
-    if type(out[1]) == "table" then return M.to_nested(r, out) end
-    for i = 1, 9 do out[i] = r[i] end
-    return out
-  end
-  if nested then return M.to_nested(r) end
-  return r
-end
-
-local function is_nested(m)
-  return type(m) == "table" and type(m[1]) == "table"
-end
-
--- f(a, [b,] out) through the checked route. (Called, never tail-called, by the public
--- function: Lua 5.1 counts a tail call as a level of its own.)
-local function unary(f, fname, r, out)
-  local nested = is_nested(r)
-  r = matrix(r, 1, fname, scratch_a, 1)
-  check_out(out, 2, fname, 1)
-  local res, why = f(r, {})
-  if res == nil then return nil, why end
-  return shaped(res, out, nested)
-end
-
-local function binary(f, fname, a, b, out)
-  local nested = is_nested(a)
-  a = matrix(a, 1, fname, scratch_a, 1)
-  b = matrix(b, 2, fname, scratch_b, 1)
-  check_out(out, 3, fname, 1)
-  return shaped(f(a, b, {}), out, nested)
-end
-
--- Quaternion arguments of fname (four numbers, or a table {w =, x =, y =, z =} and the next
--- argument), or raise.
-local function quaternion_args(fname, w, x, y, z, out)
-  if type(w) == "table" then w, x, y, z, out = w.w, w.x, w.y, w.z, x end
-  if not (is_finite(w) and is_finite(x) and is_finite(y) and is_finite(z)) then
-    args.raise(1, fname, "quaternion expected: four finite numbers w, x, y, z or a table "
-      .. "{w =, x =, y =, z =}", 3)
-  end
-  if not M.unit_quaternion(w, x, y, z) then
-    args.raise(1, fname, "quaternion expected, got a zero one", 3)
-  end
-  check_out(out, 5, fname)
-  return w, x, y, z, out
-end
-
---- A quaternion normalised without overflow or underflow: scaled by its largest component,
--- then divided by its length.
--- @tparam number w finite
--- @tparam number x
--- @tparam number y
--- @tparam number z
--- @treturn number|nil w, or nil when the quaternion's length is 1e-6 or less
--- @treturn number x
--- @treturn number y
--- @treturn number z
-function M.unit_quaternion(w, x, y, z)
-  local m = max(abs(w), abs(x), abs(y), abs(z))
-  if not (m > 0) then return nil end
-  w, x, y, z = w / m, x / m, y / m, z / m
-  local n = sqrt(w * w + x * x + y * y + z * z) -- in [1, 2]
-  if not (m * n > 1e-6) then return nil end
-  return w / n, x / n, y / n, z / n
-end
+--- A quaternion normalised without overflow or underflow
+-- (`tagpose.core.rotation_input.unit_quaternion`).
+-- @function unit_quaternion
+M.unit_quaternion = input.unit_quaternion
 
 --- Quaternion of a rotation matrix by Shepperd's method (branch on the largest of the trace
 -- and the diagonal terms, so no square root of a small number is taken).
@@ -461,126 +372,27 @@ function M.of_pose(p, out)
   return nil
 end
 
----------------------------------------------------------------------------------------------
--- Roll, pitch and yaw: `R = Rz(yaw)·Ry(pitch)·Rx(roll)`, ROS's convention (tf2's `setRPY`,
--- REP 103's fixed axes: roll about x first, then pitch about the fixed y, then yaw about the
--- fixed z). Unlike the functions above these are entry points of their own
--- (`tagpose.rotation.to_rpy`, `from_rpy`), so they check their arguments.
-
---- Below this `cos(pitch)` (the length of R's first column's x, y part) `to_rpy` is at gimbal
--- lock: roll and yaw turn about one axis there, so yaw is set to 0 and roll carries the turn
--- (as tf2's `getRPY`). The rotation it describes is still R to 2·10⁻¹³.
-M.GIMBAL_LOCK = 1e-13
---- How far from orthonormal (largest entry of `R·Rᵀ - I`) a rotation given to `to_rpy` may be.
-M.RPY_TOLERANCE = 1e-6
-
-local rpy_flat = {}
-
 --- A rotation given as a matrix, nested `r[row][col]` or flat row-major, read into `out`
--- (flat), its nine entries checked finite: `out`, or nil where it is not such a matrix. It does
--- not check that the matrix is a rotation (`deviation`).
--- @tparam any m the matrix
--- @tparam {number,...} out nine numbers to fill
--- @treturn ?{number,...} out, or nil
-function M.read(m, out)
-  if type(m) ~= "table" then return nil end
-  if type(m[1]) == "table" then
-    if type(m[2]) ~= "table" or type(m[3]) ~= "table" then return nil end
-    M.from_nested(m, out)
-  else
-    for i = 1, 9 do out[i] = m[i] end
-  end
-  for i = 1, 9 do
-    if not is_finite(out[i]) then return nil end
-  end
-  return out
-end
+-- (flat), its nine entries checked finite (`tagpose.core.rotation_input.read`).
+-- @function read
+M.read = input.read
 
 --- How far a flat 3×3 is from a rotation: the largest entry of `R·Rᵀ - I` (in absolute value)
--- and its determinant (a rotation: 0 and 1).
--- @tparam {number,...} r flat 3×3
--- @treturn number the largest entry of `|R·Rᵀ - I|`
--- @treturn number det R
-function M.deviation(r)
-  if not flat(r) then r = matrix(r, 1, "deviation", scratch_a) end
-  local worst = 0
-  for i = 0, 6, 3 do
-    for j = 0, 6, 3 do
-      local d = r[i + 1] * r[j + 1] + r[i + 2] * r[j + 2] + r[i + 3] * r[j + 3]
-      if i == j then d = d - 1 end
-      if d < 0 then d = -d end
-      if d > worst then worst = d end
-    end
-  end
-  return worst, r[1] * (r[5] * r[9] - r[6] * r[8]) - r[2] * (r[4] * r[9] - r[6] * r[7])
-    + r[3] * (r[4] * r[8] - r[5] * r[7])
-end
+-- and its determinant (`tagpose.core.rotation_input.deviation`).
+-- @function deviation
+M.deviation = input.deviation
 
+-- Roll, pitch and yaw, ROS's convention: `tagpose.core.rpy`.
+local rpy = require("tagpose.core.rpy")
+
+--- `to_rpy`'s gimbal lock and tolerance (`tagpose.core.rpy`).
+M.GIMBAL_LOCK, M.RPY_TOLERANCE = rpy.GIMBAL_LOCK, rpy.RPY_TOLERANCE
 --- Roll, pitch and yaw of a rotation matrix, `R = Rz(yaw)·Ry(pitch)·Rx(roll)` (ROS's
--- convention). Yaw comes from R's first column, then roll from the second row of `Rz(-yaw)·R`,
--- which is `(0, cos roll, -sin roll)` whatever the pitch: so `from_rpy(to_rpy(R))` is R to
--- round-off everywhere, at and near gimbal lock too (pitch ±π/2, see `GIMBAL_LOCK`).
--- @tparam table r the rotation: nested `r[row][col]` (the shape of `pose.rotation`) or the
---   flat row-major nine numbers of this module's other functions
--- @treturn number roll, in [-π, π]
--- @treturn number pitch, in [-π/2, π/2]
--- @treturn number yaw, in [-π, π] (0 at gimbal lock)
--- @raise `bad argument #1 to 'to_rpy' (...)` when r is not a 3×3 of finite numbers or not a
---   rotation (`RPY_TOLERANCE`)
--- @usage
--- local roll, pitch, yaw = tagpose.rotation.to_rpy(pose.rotation)
-function M.to_rpy(r)
-  r = M.read(r, rpy_flat)
-  if not r then
-    args.raise(1, "to_rpy", "rotation matrix expected: nested {{r11, r12, r13}, {r21, r22, r23}, "
-      .. "{r31, r32, r33}} or flat {r11, ..., r33} of finite numbers", 2)
-  end
-  local worst, det = M.deviation(r)
-  if not (worst <= M.RPY_TOLERANCE and det > 0) then
-    args.raise(1, "to_rpy", ("not a rotation matrix (largest entry of R·Rᵀ - I %.3g, "
-      .. "determinant %.3g)"):format(worst, det), 2)
-  end
-  local r11, r12, r13, r21, r22, r23, r31 = r[1], r[2], r[3], r[4], r[5], r[6], r[7]
-  local h = sqrt(r11 * r11 + r21 * r21)
-  local yaw = 0
-  if h >= M.GIMBAL_LOCK then yaw = atan2(r21, r11) end
-  local cy, sy = cos(yaw), sin(yaw)
-  local roll = atan2(sy * r13 - cy * r23, cy * r22 - sy * r12)
-  return roll, atan2(-r31, h), yaw
-end
-
-local TWO_PI = 2 * math.pi
-local degrees_said = false -- whether from_rpy said once that its angles look like degrees
-
---- The rotation of roll, pitch and yaw, `R = Rz(yaw)·Ry(pitch)·Rx(roll)` (ROS's convention).
--- Angles beyond ±2π are taken as given, and said once on standard error (degrees?).
--- @tparam number roll radians, about x
--- @tparam number pitch radians, about y
--- @tparam number yaw radians, about z
--- @treturn table nested `{{r11, r12, r13}, {r21, r22, r23}, {r31, r32, r33}}` (the shape of
---   `pose.rotation`; `from_nested` makes it flat)
--- @raise `bad argument #n to 'from_rpy' (finite number expected, got ...)`
--- @usage
--- local mount = { position = { x = 0.3, y = 0, z = 0.5 },
---   rotation = tagpose.rotation.from_rpy(0, math.rad(-15), 0) }
-function M.from_rpy(roll, pitch, yaw)
-  local bad = not is_finite(roll) and 1 or not is_finite(pitch) and 2 or not is_finite(yaw) and 3
-  if bad then
-    args.raise(bad, "from_rpy", "finite number expected, got "
-      .. args.describe(select(bad, roll, pitch, yaw)), 2)
-  end
-  if not degrees_said and (abs(roll) > TWO_PI or abs(pitch) > TWO_PI or abs(yaw) > TWO_PI) then
-    degrees_said = true
-    io.stderr:write("tagpose.rotation: warning: from_rpy(", tostring(roll), ", ",
-      tostring(pitch), ", ", tostring(yaw), "): an angle beyond ±2π is not radians (degrees?"
-      .. " math.rad(30) is 30°)\n")
-  end
-  local cr, sr, cp, sp, cy, sy = cos(roll), sin(roll), cos(pitch), sin(pitch), cos(yaw), sin(yaw)
-  return {
-    { cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr },
-    { sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr },
-    { -sp, cp * sr, cp * cr },
-  }
-end
+-- convention; `tagpose.core.rpy.to_rpy`).
+-- @function to_rpy
+M.to_rpy = rpy.to_rpy
+--- The rotation of roll, pitch and yaw, nested (`tagpose.core.rpy.from_rpy`).
+-- @function from_rpy
+M.from_rpy = rpy.from_rpy
 
 return M
