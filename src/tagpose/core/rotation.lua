@@ -385,8 +385,11 @@ M.deviation = input.deviation
 -- Roll, pitch and yaw, ROS's convention: `tagpose.core.rpy`.
 local rpy = require("tagpose.core.rpy")
 
---- `to_rpy`'s gimbal lock and tolerance (`tagpose.core.rpy`).
-M.GIMBAL_LOCK, M.RPY_TOLERANCE = rpy.GIMBAL_LOCK, rpy.RPY_TOLERANCE
+--- Below this `cos(pitch)` `to_rpy` is at gimbal lock (`tagpose.core.rpy.GIMBAL_LOCK`).
+M.GIMBAL_LOCK = rpy.GIMBAL_LOCK
+--- How far from orthonormal a rotation given to `to_rpy` may be
+-- (`tagpose.core.rpy.RPY_TOLERANCE`).
+M.RPY_TOLERANCE = rpy.RPY_TOLERANCE
 --- Roll, pitch and yaw of a rotation matrix, `R = Rz(yaw)·Ry(pitch)·Rx(roll)` (ROS's
 -- convention; `tagpose.core.rpy.to_rpy`).
 -- @function to_rpy

@@ -165,6 +165,11 @@ end
 --- Quaternion arguments of fname (four numbers, or a table `{w =, x =, y =, z =}` and the
 -- next argument as `out`), or raise at its caller.
 -- @tparam string fname
+-- @tparam any w
+-- @tparam any x
+-- @tparam any y
+-- @tparam any z
+-- @tparam any out
 -- @return w, x, y, z, out
 function M.quaternion_args(fname, w, x, y, z, out)
   if type(w) == "table" then w, x, y, z, out = w.w, w.x, w.y, w.z, x end
