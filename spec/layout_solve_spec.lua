@@ -290,7 +290,7 @@ describe("tagpose.layout", function()
         quaternion = { w = 1, x = 0, y = 0, z = 0 } } } }
       assert.equal("bad argument #3 to 'solve' (layout.tags[0].size: positive number expected,"
         .. " got number -1)", raised(function() tagpose.layout.solve(det, camera, bad) end, name))
-      assert.equal("bad argument #4 to 'solve' (options: unknown key string sigm)",
+      assert.equal("bad argument #4 to 'solve' (options.sigm: unknown key (did you mean 'sigma'?))",
         raised(function() tagpose.layout.solve(det, camera, nominal, { sigm = 1 }) end, name))
     end)
   end)

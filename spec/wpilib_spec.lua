@@ -189,7 +189,8 @@ describe("tagpose.layout.read() of a WPILib field map", function()
     it("options it does not take, raising at the caller", function()
       local name = "wpilib_spec.lua"
       local misuses = {
-        { { sise = 1 }, "bad argument #2 to 'read' (options: unknown key string sise)" },
+        { { sise = 1 }, "bad argument #2 to 'read' (options.sise: unknown key (did you mean"
+          .. " 'size'?))" },
         { { size = -1 }, "bad argument #2 to 'read' (options.size: positive number expected, got"
           .. " number -1)" },
         { { bundle = 3 }, "bad argument #2 to 'read' (options.bundle: string expected, got"

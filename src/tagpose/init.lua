@@ -96,15 +96,19 @@ local function read_options(options)
     return nil, "options.max_iterations: positive integer expected, got " .. describe(max_it)
   end
   local prior, into = options.prior, options.into
+  local chained = false
   if prior ~= nil then
     if type(prior) ~= "table" then
       return nil, "options.prior: pose table expected, got " .. type(prior)
     end
     track = track or require("tagpose.track")
-    prior = track.from_prior(prior)
+    local pose = prior
+    prior = track.from_prior(pose)
     if not prior then
       return nil, "options.prior: pose with a finite quaternion or rotation expected"
     end
+    -- (a state of a solve's own, not one made from the caller's pose)
+    chained = prior == rawget(pose, "track")
   end
   if into ~= nil and type(into) ~= "table" then
     return nil, "options.into: table expected, got " .. type(into)
@@ -118,16 +122,47 @@ local function read_options(options)
     return nil, "options.time: finite number expected, got "
       .. (time ~= time and "NaN" or describe(time))
   end
-  local order = options.order
-  if order ~= nil and order ~= "apriltag" and order ~= "opencv" then
-    return nil, "options.order: 'apriltag' or 'opencv' expected, got " .. describe(order)
-  end
-  return method, tol, max_it, prior, into, sigma, time
+  local opencv, why = args.read_order(options.order)
+  if opencv == nil then return nil, why end
+  return method, tol, max_it, prior, into, sigma, time, chained
 end
 
 -- Whether the options put the corners in OpenCV's order (read before the corners are).
 local function opencv_order(options)
   return type(options) == "table" and options.order == "opencv"
+end
+
+--- Steps between the frames of a chain of tracked solves (`options.prior` and `options.time`)
+-- of at least this many seconds, three in a row at a steady cadence (each within 1.5 times the
+-- one before), are times in milliseconds: the pose's `warning` says so (and standard error,
+-- once per chain). The tracking filter models steps up to `tagpose.track.MAX_STEP`.
+local STEADY_STEP = 5
+
+-- The cadence of a chain of tracked solves carried from the prior's state to the new one:
+-- the step, how many steps in a row were steady and long, whether the chain was warned. The
+-- warning, or nil.
+local function cadence(prior, state, time, chained)
+  local step, steady, warned = nil, 0, nil
+  if chained then
+    warned = prior.warned
+    if time ~= nil then
+      step = time - prior.time
+      local last = prior.step
+      if step >= STEADY_STEP and last and last >= STEADY_STEP and step < 1.5 * last
+        and last < 1.5 * step then
+        steady = (prior.steady or 0) + 1
+      end
+    end
+  end
+  state.step, state.steady, state.warned = step, steady, warned
+  if steady < 2 then return nil end
+  local text = ("options.time steps by %.4g between frames, steadily: the tracking filter takes"
+    .. " seconds, and these times look like milliseconds (pass seconds)"):format(step)
+  if not warned then
+    state.warned = true
+    io.stderr:write("tagpose: warning: ", text, "\n")
+  end
+  return "tagpose: " .. text
 end
 
 local function arg_error(n, message)
@@ -160,7 +195,7 @@ end
 
 -- The result of the refined method from an ordered workspace: the better fit, or with a prior
 -- the tracking filter's choice (`tagpose.track`), whose state goes into the result's `track`.
-local function refined_result(w, camera, half, prior, into, sigma, time)
+local function refined_result(w, camera, half, prior, into, sigma, time, chained)
   local ok, why = pipeline.finite(w)
   if not ok then return nil, why end
   local a, b = w.first, w.count == 2 and w.second or nil
@@ -173,6 +208,7 @@ local function refined_result(w, camera, half, prior, into, sigma, time)
   end
   local state = state_into(into, prior)
   local pick, p = track.step(prior, a, b, size, time, state)
+  local warning = cadence(prior, state, time, chained)
   if pick == 2 then a, b, ea, eb = b, a, eb, ea end
   -- (the filter keeps its own running estimate of σ² even when options.sigma is given: its
   -- confidence map was fitted so; σ, or the mean of σ² that estimate implies, sets the
@@ -181,6 +217,7 @@ local function refined_result(w, camera, half, prior, into, sigma, time)
     camera, half, sigma2 or track.noise_mean(state.sigma2, state.dof), size, time, into)
   if b then result.set_confidence(r, track.confidence(p)) end
   r.track = state
+  r.warning = warning
   return r
 end
 
@@ -206,7 +243,9 @@ end
 --   - `prior`: the pose this tag had in the previous frame, for tracking (`tagpose.track`;
 --     `tagpose.tracker` does this for many tags);
 --   - `time`: this frame's time in seconds, for the tracking filter's motion model (default:
---     `tagpose.track.FRAME` after the prior's frame);
+--     `tagpose.track.FRAME` after the prior's frame); a chain of solves whose times step by 5
+--     or more at a steady cadence (milliseconds) has a `warning` on its poses, and says so
+--     once on standard error;
 --   - `into`: a pose table from an earlier call to fill instead of allocating a new one;
 --   - `sigma`: the standard deviation of the corner noise in pixels, for `covariance` and
 --     `confidence` (default: with `prior`, the tracker's running estimate; else
@@ -236,7 +275,7 @@ function M.solve(corners, camera, tag_size, options)
   if problem then arg_error(2, problem) end
   problem = args.check_size(tag_size, "tag_size")
   if problem then arg_error(3, problem) end
-  local method, tol, max_it, prior, into, sigma, time = read_options(options)
+  local method, tol, max_it, prior, into, sigma, time, chained = read_options(options)
   if not method then arg_error(4, tol) end
   if read ~= true then return nil, "tagpose: corner " .. read .. " is not finite" end
   local ok, why = pipeline.prepare(w, camera)
@@ -245,7 +284,7 @@ function M.solve(corners, camera, tag_size, options)
   if method == "refined" then
     ok, why = pipeline.refined(w, half, tol, max_it)
     if not ok then return nil, why end
-    return refined_result(w, camera, half, prior, into, sigma, time)
+    return refined_result(w, camera, half, prior, into, sigma, time, chained)
   end
   ok, why = pipeline.seed(w, half, tol, max_it)
   if not ok then return nil, why end

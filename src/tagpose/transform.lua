@@ -21,7 +21,6 @@ local args = require("tagpose.core.args")
 local compat = require("tagpose.core.compat")
 
 local is_finite, describe = compat.is_finite, args.describe
-local sqrt = math.sqrt
 
 local M = {}
 
@@ -86,8 +85,13 @@ local function read_pose(p, n, fname, r)
   if q ~= nil then
     local w, x, y, z
     if type(q) == "table" then w, x, y, z = q.w, q.x, q.y, q.z end
-    if not (is_finite(w) and is_finite(x) and is_finite(y) and is_finite(z)
-      and sqrt(w * w + x * x + y * y + z * z) > 1e-6) then
+    if not (is_finite(w) and is_finite(x) and is_finite(y) and is_finite(z)) then
+      raise(n, fname, "pose.quaternion: {w =, x =, y =, z =} of finite numbers, not zero, "
+        .. "expected")
+    end
+    -- normalised without overflow: {w = 1e200, x = 1e200} is a quarter turn
+    w, x, y, z = rotation.unit_quaternion(w, x, y, z)
+    if not w then
       raise(n, fname, "pose.quaternion: {w =, x =, y =, z =} of finite numbers, not zero, "
         .. "expected")
     end

@@ -93,7 +93,7 @@ local function add(fr, i, det, camera)
     return skip(fr, i, "block: table {id =, corners =} expected, got " .. type(det), true)
   end
   local px = {}
-  local finite, why = args.read_corners(det.corners, px)
+  local finite, why = args.read_corners(det.corners, px, fr.settings.opencv)
   if not finite then
     return skip(fr, i, "block: " .. (why:match("^corner ") and why or "corners: " .. why), true)
   end

@@ -45,6 +45,9 @@ local M = {}
 
 compat.interpret_module()
 
+-- the call the corner-order hint names
+local CALL = "tagpose.block.solve(detections, camera, tag_size, block_size, options)"
+
 local function arg_error(n, message)
   args.raise(n, "solve", message, 3)
 end
@@ -102,7 +105,10 @@ end
 --     the layout `tagpose.layout.cube(tag_size, block_size, faces)` (not with `layout`);
 --   - `max_iterations`: bound on the linearisations of one joint fit (default 20);
 --   - `sigma`: the corner noise in pixels, for `covariance` and `confidence` (default: the
---     frame's block residuals pooled with `tagpose.uncertainty.DEFAULT_SIGMA`).
+--     frame's block residuals pooled with `tagpose.uncertainty.DEFAULT_SIGMA`);
+--   - `order`: the corners' order, `"apriltag"` (the default: the detection order) or
+--     `"opencv"` (OpenCV's and ArUco's detectors: top-left, top-right, bottom-right,
+--     bottom-left of the printed tag), as for `tagpose.solve`.
 -- @treturn {table,...} blocks, nearest first (sorted by `id` when tracking), each
 --   `{id =, position = {x, y, z}, rotation = {{...}, {...}, {...}}, quaternion = {w, x, y, z},
 --   raw_rotation = {{...}, ...}, error = px, tags = {i, ...}, faces = k, tag_faces = {"+x",
@@ -133,9 +139,7 @@ function M.solve(detections, camera, tag_size, block_size, options)
   if type(detections) ~= "table" then
     arg_error(1, "array of detections expected, got " .. type(detections))
   end
-  if detections[1] == nil and (detections.corners ~= nil or detections.id ~= nil) then
-    arg_error(1, "array of detections expected, got one detection (pass {detection})")
-  end
+  if args.is_detection(detections) then arg_error(1, args.ONE_DETECTION) end
   local problem = camera_model.check(camera)
   if problem then arg_error(2, problem) end
   -- (the sizes are checked before the options unless a layout gives them)
@@ -148,8 +152,10 @@ function M.solve(detections, camera, tag_size, block_size, options)
   if not body then arg_error(n, problem) end
   if not settings then arg_error(5, misuse) end
   local fr = frame.new(settings, detections, camera, body)
+  for _, s in ipairs(fr.skipped) do s.reason = args.name_order(s.reason, CALL) end
   if #fr.dets == 0 and fr.first_reason then
-    return nil, "block: no detection gives a tag pose (" .. fr.first_reason .. ")"
+    return nil, args.name_order("block: no detection gives a tag pose (" .. fr.first_reason
+      .. ")", CALL)
   end
   return result.results(fr, result.keep(fr, search.find(fr)))
 end

@@ -6,7 +6,8 @@
 -- `{x, y, z}` as an array, or nil), `auto_up`, `up_tolerance` (radians), `floor` (or nil),
 -- `auto_floor`, `floor_tolerance` (or nil for the default), `max_iterations`, `previous` (the
 -- previous frame's blocks as records `{x, y, z, r, id, decided}`, or nil), `next_id`, and the
--- noise evidence carried from the previous frame, `noise_sse` and `noise_dof` (or nil).
+-- noise evidence carried from the previous frame, `noise_sse` and `noise_dof` (or nil), and
+-- `opencv` (the corners in OpenCV's order, `options.order`).
 -- @module tagpose.block.options
 
 local compat = require("tagpose.core.compat")
@@ -93,7 +94,7 @@ end
 
 -- the options block.solve takes
 local OPTIONS = { "up", "up_tolerance", "floor", "floor_tolerance", "previous", "faces",
-  "layout", "max_iterations", "sigma" }
+  "layout", "max_iterations", "sigma", "order" }
 
 -- the scalar options: name, check, what the check expects
 -- (an angle in radians: one above π/2 is degrees passed for radians, a prior that holds nothing)
@@ -132,11 +133,13 @@ end
 -- @return nil, string describing the misuse
 function M.read(options)
   local s = { up_tolerance = M.UP_TOLERANCE, max_iterations = M.MAX_ITERATIONS,
-    auto_up = false, auto_floor = false }
+    auto_up = false, auto_floor = false, opencv = false }
   if options == nil then return s end
   if type(options) ~= "table" then return nil, "options table expected, got " .. type(options) end
   local problem = args.unknown_keys(options, OPTIONS, "options")
   if problem then return nil, problem end
+  s.opencv, problem = args.read_order(options.order)
+  if s.opencv == nil then return nil, problem end
   if options.up == "auto" then
     s.auto_up = true
   elseif options.up ~= nil then

@@ -132,6 +132,52 @@ function M.read_corners(corners, out, opencv)
   return first_nonfinite or true
 end
 
+--- The corner orders an `options.order` takes: the detection order c1..c4 (the default) and
+-- OpenCV's and ArUco's (`read_corners`).
+M.ORDERS = { "apriltag", "opencv" }
+
+--- Read an `options.order`: true for OpenCV's order, false for the detection order (the
+-- default, `nil`).
+-- @tparam any order
+-- @treturn boolean|nil whether the corners are in OpenCV's order, or nil
+-- @treturn string what is wrong, when nil (for `bad argument`)
+function M.read_order(order)
+  if order == nil or order == "apriltag" then return false end
+  if order == "opencv" then return true end
+  return nil, "options.order: 'apriltag' or 'opencv' expected, got " .. M.describe(order)
+end
+
+--- The words of the corner-order hint in a failure message ("the corners wind the wrong way
+-- round"): what `tagpose.solve` takes.
+M.ORDER_HINT = "options.order = 'opencv'"
+
+--- A failure message with its corner-order hint naming the option of another call than
+-- `tagpose.solve`: `options.order = 'opencv'` becomes `{order = 'opencv'} in call` (or
+-- `option` itself, such as a command's `--order opencv`, when `call` is nil).
+-- @tparam ?string message a failure message (nil passes through)
+-- @tparam ?string call the call the user made, `tagpose.layout.solve(..., options)`
+-- @tparam[opt] string option the whole replacement instead
+-- @treturn ?string
+function M.name_order(message, call, option)
+  if type(message) ~= "string" then return message end
+  local i, j = message:find(M.ORDER_HINT, 1, true)
+  if not i then return message end
+  local text = option or ("{order = 'opencv'} in " .. call)
+  return message:sub(1, i - 1) .. text .. message:sub(j + 1)
+end
+
+--- The misuse of passing one detection where an array of them belongs: the message, in the
+-- words of every entry point.
+M.ONE_DETECTION = "array of detections expected, got one detection {id =, corners =} "
+  .. "(pass {detection})"
+
+--- Is `t` one detection `{id =, corners =}` rather than an array of them?
+-- @tparam table t
+-- @treturn boolean
+function M.is_detection(t)
+  return t[1] == nil and (t.corners ~= nil or t.id ~= nil)
+end
+
 -- Levenshtein distance of two short strings, with an early exit above `cap`.
 local function distance(a, b, cap)
   local la, lb = #a, #b

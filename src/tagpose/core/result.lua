@@ -289,6 +289,7 @@ local function pose_table(c, err, iterations, refine_iterations, into)
   local alt = rawget(into, "alternative")
   if alt then spare[into] = alt end
   into.alternative, into.confidence, into.covariance, into.track = nil, nil, nil, nil
+  into.warning = nil
   return into
 end
 

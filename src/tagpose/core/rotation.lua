@@ -2,17 +2,34 @@
 --
 -- A rotation matrix is a flat, row-major, 1-based array of nine numbers:
 -- `{r11, r12, r13, r21, r22, r23, r31, r32, r33}`. Its columns are the images of the source
--- frame's axes. Quaternions are passed as four numbers `w, x, y, z` (scalar first) and returned
+-- frame's axes. Every function also takes the nested `r[row][col]` matrices tagpose returns
+-- (`pose.rotation`), and answers a matrix in the shape it was given (the shape of `out` when
+-- given, else of its first matrix). Quaternions are passed as four numbers `w, x, y, z`
+-- (scalar first; `from_quaternion` also takes a pose's `{w =, x =, y =, z =}`) and returned
 -- unit with `w >= 0`. Angles are radians. Functions that fill an `out` array read all their
--- inputs first, so `out` may be one of the inputs.
+-- inputs first, so `out` may be one of the inputs. Misuse (a matrix that is not nine finite
+-- numbers, a quaternion that is not four) raises `bad argument #n to 'name' (...)`.
 -- @module tagpose.core.rotation
 
 local compat = require("tagpose.core.compat")
+local args = require("tagpose.core.args")
+local input = require("tagpose.core.rotation_input")
 
 local sqrt, sin, cos, asin = math.sqrt, math.sin, math.cos, math.asin
 local atan2, is_finite = compat.atan2, compat.is_finite
+-- the checked route (`tagpose.core.rotation_input`): taken only when an argument is not a flat
+-- array of numbers
+local flat, flat_out, matrix, check_out = input.flat, input.flat_out, input.matrix,
+  input.check_out
+local unary, binary, quaternion_args = input.unary, input.binary, input.quaternion_args
+local scratch_a, scratch_b = {}, {} -- nested arguments read flat (never handed out)
 
 local M = {}
+
+--- A quaternion normalised without overflow or underflow
+-- (`tagpose.core.rotation_input.unit_quaternion`).
+-- @function unit_quaternion
+M.unit_quaternion = input.unit_quaternion
 
 --- Quaternion of a rotation matrix by Shepperd's method (branch on the largest of the trace
 -- and the diagonal terms, so no square root of a small number is taken).
@@ -22,6 +39,7 @@ local M = {}
 -- @treturn number y
 -- @treturn number z
 function M.to_quaternion(r)
+  if not flat(r) then r = matrix(r, 1, "to_quaternion", scratch_a) end
   -- each branch reads only what it needs (LuaJIT cannot compile the exits of a version that
   -- loads all nine entries first: "register coalescing too complex")
   local r11, r22, r33 = r[1], r[5], r[9]
@@ -53,8 +71,20 @@ end
 -- @tparam[opt] {number,...} out array to fill (a new one if absent)
 -- @treturn {number,...} flat 3×3 rotation
 function M.from_quaternion(w, x, y, z, out)
+  if type(w) ~= "number" or type(x) ~= "number" or type(y) ~= "number" or type(z) ~= "number"
+    or not flat_out(out) then
+    w, x, y, z, out = quaternion_args("from_quaternion", w, x, y, z, out)
+    if out ~= nil and type(out[1]) == "table" then
+      return M.to_nested(M.from_quaternion(w, x, y, z), out)
+    end
+  end
   out = out or {}
   local n = sqrt(w * w + x * x + y * y + z * z)
+  if not (n > 1e-150 and n < 1e150) then
+    -- (a length that would overflow or underflow: normalised by the largest component first)
+    local uw, ux, uy, uz = M.unit_quaternion(w, x, y, z)
+    if uw then w, x, y, z, n = uw, ux, uy, uz, 1 end
+  end
   w, x, y, z = w / n, x / n, y / n, z / n
   out[1] = 1 - 2 * (y * y + z * z)
   out[2] = 2 * (x * y - w * z)
@@ -76,6 +106,7 @@ end
 -- @treturn number wy
 -- @treturn number wz
 function M.to_rotation_vector(r)
+  if not flat(r) then r = matrix(r, 1, "to_rotation_vector", scratch_a) end
   local w, x, y, z = M.to_quaternion(r)
   local s = sqrt(x * x + y * y + z * z)
   if s == 0 then return 0, 0, 0 end
@@ -91,6 +122,16 @@ end
 -- @tparam[opt] {number,...} out array to fill
 -- @treturn {number,...} flat 3×3 rotation
 function M.from_rotation_vector(wx, wy, wz, out)
+  if type(wx) ~= "number" or type(wy) ~= "number" or type(wz) ~= "number"
+    or not flat_out(out) then
+    local bad = not is_finite(wx) and 1 or not is_finite(wy) and 2 or not is_finite(wz) and 3
+    if bad then
+      args.raise(bad, "from_rotation_vector", "finite number expected, got "
+        .. args.describe(select(bad, wx, wy, wz)), 2)
+    end
+    check_out(out, 4, "from_rotation_vector")
+    return M.to_nested(M.from_rotation_vector(wx, wy, wz), out)
+  end
   out = out or {}
   local t2 = wx * wx + wy * wy + wz * wz
   local a, b
@@ -122,6 +163,10 @@ end
 -- @tparam[opt] {number,...} out array to fill (may be `a` or `b`)
 -- @treturn {number,...} out
 function M.multiply(a, b, out)
+  if not (flat(a) and flat(b) and flat_out(out)) then
+    local res = binary(M.multiply, "multiply", a, b, out)
+    return res
+  end
   out = out or {}
   local a1, a2, a3, a4, a5, a6, a7, a8, a9 = a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9]
   local b1, b2, b3, b4, b5, b6, b7, b8, b9 = b[1], b[2], b[3], b[4], b[5], b[6], b[7], b[8], b[9]
@@ -143,6 +188,10 @@ end
 -- @tparam[opt] {number,...} out array to fill (may be `a` or `b`)
 -- @treturn {number,...} out
 function M.multiply_transpose(a, b, out)
+  if not (flat(a) and flat(b) and flat_out(out)) then
+    local res = binary(M.multiply_transpose, "multiply_transpose", a, b, out)
+    return res
+  end
   out = out or {}
   local a1, a2, a3, a4, a5, a6, a7, a8, a9 = a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9]
   local b1, b2, b3, b4, b5, b6, b7, b8, b9 = b[1], b[2], b[3], b[4], b[5], b[6], b[7], b[8], b[9]
@@ -161,6 +210,10 @@ end
 -- @tparam[opt] {number,...} out array to fill (may be `a` or `b`)
 -- @treturn {number,...} out
 function M.transpose_multiply(a, b, out)
+  if not (flat(a) and flat(b) and flat_out(out)) then
+    local res = binary(M.transpose_multiply, "transpose_multiply", a, b, out)
+    return res
+  end
   out = out or {}
   local a1, a2, a3, a4, a5, a6, a7, a8, a9 = a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9]
   local b1, b2, b3, b4, b5, b6, b7, b8, b9 = b[1], b[2], b[3], b[4], b[5], b[6], b[7], b[8], b[9]
@@ -178,6 +231,10 @@ end
 -- @tparam[opt] {number,...} out array to fill (may be `r`)
 -- @treturn {number,...} out
 function M.transpose(r, out)
+  if not (flat(r) and flat_out(out)) then
+    local res = unary(M.transpose, "transpose", r, out)
+    return res
+  end
   out = out or {}
   local r2, r3, r4, r6, r7, r8 = r[2], r[3], r[4], r[6], r[7], r[8]
   out[1], out[5], out[9] = r[1], r[5], r[9]
@@ -192,6 +249,9 @@ end
 -- @tparam {number,...} b flat 3×3 rotation
 -- @treturn number angle in radians
 function M.angle(a, b)
+  if not (flat(a) and flat(b)) then
+    a, b = matrix(a, 1, "angle", scratch_a), matrix(b, 2, "angle", scratch_b)
+  end
   local s = 0
   for i = 1, 9 do
     local d = a[i] - b[i]
@@ -210,6 +270,12 @@ end
 -- @treturn {number,...} out
 -- @return nil, string when columns 1 and 2 are zero or parallel
 function M.orthonormalise(r, out)
+  -- (columns 1 and 2 only are read: the flat route takes a third column unset)
+  if not (type(r) == "table" and type(r[1]) == "number" and type(r[8]) == "number"
+    and flat_out(out)) then
+    local res, why = unary(M.orthonormalise, "orthonormalise", r, out)
+    return res, why
+  end
   local x1, x2, x3 = r[1], r[4], r[7]
   local y1, y2, y3 = r[2], r[5], r[8]
   local nx = sqrt(x1 * x1 + x2 * x2 + x3 * x3)
@@ -245,6 +311,8 @@ end
 -- @tparam[opt] table out nested table to fill
 -- @treturn table nested rows
 function M.to_nested(r, out)
+  if not flat(r) then r = matrix(r, 1, "to_nested", scratch_a) end
+  check_out(out, 2, "to_nested")
   out = out or {}
   local r1, r2, r3 = out[1] or {}, out[2] or {}, out[3] or {}
   r1[1], r1[2], r1[3] = r[1], r[2], r[3]
@@ -259,8 +327,18 @@ end
 -- @tparam[opt] {number,...} out array to fill
 -- @treturn {number,...} flat 3×3
 function M.from_nested(m, out)
+  local m1, m2, m3 = type(m) == "table" and m[1], type(m) == "table" and m[2],
+    type(m) == "table" and m[3]
+  if not (type(m1) == "table" and type(m2) == "table" and type(m3) == "table"
+    and type(m1[1]) == "number" and type(m3[3]) == "number") or not flat_out(out) then
+    m = matrix(m, 1, "from_nested", scratch_a)
+    check_out(out, 2, "from_nested")
+    m1, m2, m3 = { m[1], m[2], m[3] }, { m[4], m[5], m[6] }, { m[7], m[8], m[9] }
+    if out ~= nil and type(out[1]) == "table" then
+      return M.to_nested(M.from_nested({ m1, m2, m3 }), out)
+    end
+  end
   out = out or {}
-  local m1, m2, m3 = m[1], m[2], m[3]
   out[1], out[2], out[3] = m1[1], m1[2], m1[3]
   out[4], out[5], out[6] = m2[1], m2[2], m2[3]
   out[7], out[8], out[9] = m3[1], m3[2], m3[3]
@@ -294,117 +372,30 @@ function M.of_pose(p, out)
   return nil
 end
 
----------------------------------------------------------------------------------------------
--- Roll, pitch and yaw: `R = Rz(yaw)·Ry(pitch)·Rx(roll)`, ROS's convention (tf2's `setRPY`,
--- REP 103's fixed axes: roll about x first, then pitch about the fixed y, then yaw about the
--- fixed z). Unlike the functions above these are entry points of their own
--- (`tagpose.rotation.to_rpy`, `from_rpy`), so they check their arguments.
-
-local args = require("tagpose.core.args")
-
---- Below this `cos(pitch)` (the length of R's first column's x, y part) `to_rpy` is at gimbal
--- lock: roll and yaw turn about one axis there, so yaw is set to 0 and roll carries the turn
--- (as tf2's `getRPY`). The rotation it describes is still R to 2·10⁻¹³.
-M.GIMBAL_LOCK = 1e-13
---- How far from orthonormal (largest entry of `R·Rᵀ - I`) a rotation given to `to_rpy` may be.
-M.RPY_TOLERANCE = 1e-6
-
-local rpy_flat = {}
-
 --- A rotation given as a matrix, nested `r[row][col]` or flat row-major, read into `out`
--- (flat), its nine entries checked finite: `out`, or nil where it is not such a matrix. It does
--- not check that the matrix is a rotation (`deviation`).
--- @tparam any m the matrix
--- @tparam {number,...} out nine numbers to fill
--- @treturn ?{number,...} out, or nil
-function M.read(m, out)
-  if type(m) ~= "table" then return nil end
-  if type(m[1]) == "table" then
-    if type(m[2]) ~= "table" or type(m[3]) ~= "table" then return nil end
-    M.from_nested(m, out)
-  else
-    for i = 1, 9 do out[i] = m[i] end
-  end
-  for i = 1, 9 do
-    if not is_finite(out[i]) then return nil end
-  end
-  return out
-end
+-- (flat), its nine entries checked finite (`tagpose.core.rotation_input.read`).
+-- @function read
+M.read = input.read
 
 --- How far a flat 3×3 is from a rotation: the largest entry of `R·Rᵀ - I` (in absolute value)
--- and its determinant (a rotation: 0 and 1).
--- @tparam {number,...} r flat 3×3
--- @treturn number the largest entry of `|R·Rᵀ - I|`
--- @treturn number det R
-function M.deviation(r)
-  local worst = 0
-  for i = 0, 6, 3 do
-    for j = 0, 6, 3 do
-      local d = r[i + 1] * r[j + 1] + r[i + 2] * r[j + 2] + r[i + 3] * r[j + 3]
-      if i == j then d = d - 1 end
-      if d < 0 then d = -d end
-      if d > worst then worst = d end
-    end
-  end
-  return worst, r[1] * (r[5] * r[9] - r[6] * r[8]) - r[2] * (r[4] * r[9] - r[6] * r[7])
-    + r[3] * (r[4] * r[8] - r[5] * r[7])
-end
+-- and its determinant (`tagpose.core.rotation_input.deviation`).
+-- @function deviation
+M.deviation = input.deviation
 
+-- Roll, pitch and yaw, ROS's convention: `tagpose.core.rpy`.
+local rpy = require("tagpose.core.rpy")
+
+--- Below this `cos(pitch)` `to_rpy` is at gimbal lock (`tagpose.core.rpy.GIMBAL_LOCK`).
+M.GIMBAL_LOCK = rpy.GIMBAL_LOCK
+--- How far from orthonormal a rotation given to `to_rpy` may be
+-- (`tagpose.core.rpy.RPY_TOLERANCE`).
+M.RPY_TOLERANCE = rpy.RPY_TOLERANCE
 --- Roll, pitch and yaw of a rotation matrix, `R = Rz(yaw)·Ry(pitch)·Rx(roll)` (ROS's
--- convention). Yaw comes from R's first column, then roll from the second row of `Rz(-yaw)·R`,
--- which is `(0, cos roll, -sin roll)` whatever the pitch: so `from_rpy(to_rpy(R))` is R to
--- round-off everywhere, at and near gimbal lock too (pitch ±π/2, see `GIMBAL_LOCK`).
--- @tparam table r the rotation: nested `r[row][col]` (the shape of `pose.rotation`) or the
---   flat row-major nine numbers of this module's other functions
--- @treturn number roll, in [-π, π]
--- @treturn number pitch, in [-π/2, π/2]
--- @treturn number yaw, in [-π, π] (0 at gimbal lock)
--- @raise `bad argument #1 to 'to_rpy' (...)` when r is not a 3×3 of finite numbers or not a
---   rotation (`RPY_TOLERANCE`)
--- @usage
--- local roll, pitch, yaw = tagpose.rotation.to_rpy(pose.rotation)
-function M.to_rpy(r)
-  r = M.read(r, rpy_flat)
-  if not r then
-    args.raise(1, "to_rpy", "rotation matrix expected: nested {{r11, r12, r13}, {r21, r22, r23}, "
-      .. "{r31, r32, r33}} or flat {r11, ..., r33} of finite numbers", 2)
-  end
-  local worst, det = M.deviation(r)
-  if not (worst <= M.RPY_TOLERANCE and det > 0) then
-    args.raise(1, "to_rpy", ("not a rotation matrix (largest entry of R·Rᵀ - I %.3g, "
-      .. "determinant %.3g)"):format(worst, det), 2)
-  end
-  local r11, r12, r13, r21, r22, r23, r31 = r[1], r[2], r[3], r[4], r[5], r[6], r[7]
-  local h = sqrt(r11 * r11 + r21 * r21)
-  local yaw = 0
-  if h >= M.GIMBAL_LOCK then yaw = atan2(r21, r11) end
-  local cy, sy = cos(yaw), sin(yaw)
-  local roll = atan2(sy * r13 - cy * r23, cy * r22 - sy * r12)
-  return roll, atan2(-r31, h), yaw
-end
-
---- The rotation of roll, pitch and yaw, `R = Rz(yaw)·Ry(pitch)·Rx(roll)` (ROS's convention).
--- @tparam number roll radians, about x
--- @tparam number pitch radians, about y
--- @tparam number yaw radians, about z
--- @treturn table nested `{{r11, r12, r13}, {r21, r22, r23}, {r31, r32, r33}}` (the shape of
---   `pose.rotation`; `from_nested` makes it flat)
--- @raise `bad argument #n to 'from_rpy' (finite number expected, got ...)`
--- @usage
--- local mount = { position = { x = 0.3, y = 0, z = 0.5 },
---   rotation = tagpose.rotation.from_rpy(0, math.rad(-15), 0) }
-function M.from_rpy(roll, pitch, yaw)
-  local bad = not is_finite(roll) and 1 or not is_finite(pitch) and 2 or not is_finite(yaw) and 3
-  if bad then
-    args.raise(bad, "from_rpy", "finite number expected, got "
-      .. args.describe(select(bad, roll, pitch, yaw)), 2)
-  end
-  local cr, sr, cp, sp, cy, sy = cos(roll), sin(roll), cos(pitch), sin(pitch), cos(yaw), sin(yaw)
-  return {
-    { cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr },
-    { sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr },
-    { -sp, cp * sr, cp * cr },
-  }
-end
+-- convention; `tagpose.core.rpy.to_rpy`).
+-- @function to_rpy
+M.to_rpy = rpy.to_rpy
+--- The rotation of roll, pitch and yaw, nested (`tagpose.core.rpy.from_rpy`).
+-- @function from_rpy
+M.from_rpy = rpy.from_rpy
 
 return M

@@ -280,7 +280,16 @@ function M.read(path, options)
   local text, err = output.read_text(path, M.MAX_BYTES, "a layout of thousands of tags is"
     .. " smaller")
   if not text then return nil, "layout: " .. err end
-  return decode(text, path, bundle, size)
+  local layout, why = decode(text, path, bundle, size)
+  if not layout or decode == decode_wpilib then return layout, why end
+  -- a size in another unit than the positions (the WPILib reader checks its own)
+  local id, side, extent = model.size_contradiction(layout.tags)
+  if id ~= nil then
+    return nil, ("layout: %s: tag %s is %.6g wide, more than twice the layout (its tags'"
+      .. " centres span %.4g): a size in millimetres beside positions in metres? Sizes and"
+      .. " positions take one unit"):format(path, tostring(id), side, extent)
+  end
+  return layout
 end
 
 --- The text of a layout file, in the format the path's extension names: everything `write`

@@ -133,6 +133,19 @@ local function read_field(r, doc, lines)
         .. describe(v[i]))
     end
   end
+  return v[1], v[2]
+end
+
+-- The tags' size against the map's extent (`tagpose.layout.model.size_contradiction`, the
+-- field's length and width included): a refusal when the size cannot be in metres.
+local function check_size(r, tags, length, width)
+  local id, _, extent = model.size_contradiction(tags, math.max(length or 0, width or 0))
+  if id ~= nil then
+    failure.raise(("layout: %s: size %.6g is larger than the field map itself (%s%.4g m"
+      .. " across): millimetres? A WPILib field map is in metres, and so is the tags' side"
+      .. " (0.1651 for the 2024 and later FRC fields)"):format(r.name, r.size,
+      length and ("field %.4g m x %.4g m, "):format(length, width) or "", extent))
+  end
 end
 
 local function parse(r, text)
@@ -141,7 +154,8 @@ local function parse(r, text)
   r.where = where
   local keys = doc.field ~= nil and { "tags", "field" } or { "tags" }
   local _, lines = object(r, doc, 1, "the field map", keys)
-  if doc.field ~= nil then read_field(r, doc, lines) end
+  local length, width
+  if doc.field ~= nil then length, width = read_field(r, doc, lines) end
   local list = doc.tags
   if type(list) ~= "table" or list == json.NULL or (list[1] == nil and next(list) ~= nil) then
     fail(r, lines.tags, "tags: an array of {ID, pose} expected, got " .. describe(list))
@@ -156,6 +170,7 @@ local function parse(r, text)
     end
     tags[id], first[id] = entry, at
   end
+  check_size(r, tags, length, width)
   return { tags = tags }
 end
 

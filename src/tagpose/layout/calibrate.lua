@@ -101,7 +101,7 @@ end
 
 -- Step 1: the frames' starts. Returns the kept frames `{index =, body =, ids =, dets =}` and
 -- the counts for the report.
-local function starts(frames, camera, tags)
+local function starts(frames, camera, tags, o)
   local kept, counts = {}, { total = #frames, used = 0, single = 0, unknown = 0, failed = 0,
     detections = 0, skipped = 0, elsewhere = 0 }
   local single_seen = {}
@@ -119,9 +119,10 @@ local function starts(frames, camera, tags)
         if type(d) == "table" and d.id ~= nil and tags[d.id] then single_seen[d.id] = true end
       end
     else
-      local body = frame.solve(dets, camera, tags, {})
+      local body, why = frame.solve(dets, camera, tags, { opencv = o.opencv })
       if not body then
         counts.failed = counts.failed + 1
+        counts.first_failure = counts.first_failure or ("frame " .. fi .. ": " .. why)
       else
         counts.skipped = counts.skipped + #body.skipped
         if #body.tags < 2 then
@@ -165,7 +166,7 @@ local function chain(kept, tags, reference)
 end
 
 -- Step 3's problem: the placed tags and the frames that see them, the starts.
-local function problem(camera, kept, tags, placed, reference)
+local function problem(camera, kept, tags, placed, reference, opencv)
   local slot, order = {}, {}
   for _, id in ipairs(tags.ids) do
     if placed[id] then
@@ -203,11 +204,8 @@ local function problem(camera, kept, tags, placed, reference)
       local d = k.dets[b.tags[j]]
       o = o + 1
       P.of[o], P.ot[o] = f, slot[b.ids[j]]
-      for c = 1, 4 do
-        local p = d.corners[c]
-        P.px[8 * (o - 1) + 2 * c - 1] = p[1] or p.x
-        P.px[8 * (o - 1) + 2 * c] = p[2] or p.y
-      end
+      args.read_corners(d.corners, corners, opencv)
+      for c = 1, 8 do P.px[8 * (o - 1) + c] = corners[c] end
     end
     P.last[f] = o
   end
@@ -293,12 +291,12 @@ local function current_tags(P, S, order, tags)
 end
 
 -- Solve every frame again with the layout reached; keep the new pose where it fits better.
-local function reseat(P, S, T, c2, order, tags, frames_used, camera)
+local function reseat(P, S, T, c2, order, tags, frames_used, camera, opencv)
   local now = current_tags(P, S, order, tags)
   copy_state(S, T)
   local mended = 0
   for f, k in ipairs(frames_used) do
-    local body = frame.solve(k.dets, camera, now, {})
+    local body = frame.solve(k.dets, camera, now, { opencv = opencv })
     if body then
       local r = rotation.from_nested(body.rotation)
       for j = 1, 9 do T.fr[9 * (f - 1) + j] = r[j] end
@@ -369,7 +367,8 @@ end
 -- @tparam {table,...} frames arrays of detections
 -- @tparam table camera a checked camera
 -- @tparam table tags the nominal layout, read (`tagpose.layout.model.read`)
--- @tparam table o the options: `max_iterations`, `reference`, `robust`, `sigma`
+-- @tparam table o the options: `max_iterations`, `reference`, `robust`, `sigma`, `opencv` (the
+--   corners in OpenCV's order)
 -- @tparam[opt] string name the layout's name, kept
 -- @treturn table the calibrated layout
 -- @treturn table the report (`tagpose.layout.report`)
@@ -377,20 +376,21 @@ end
 function M.calibrate(frames, camera, tags, o, name)
   if #frames == 0 then return nil, "layout: the log has no frames" end
   if #tags.ids < 2 then return nil, "layout: a layout of one tag has nothing to calibrate" end
-  local kept, counts, single_seen = starts(frames, camera, tags)
+  local kept, counts, single_seen = starts(frames, camera, tags, o)
   if counts.unknown == counts.total then
     return nil, "layout: no frame sees a tag of the layout"
   end
   if #kept == 0 then
     return nil, "layout: no frame sees two tags of the layout together (" .. counts.single
-      .. " frames see one, " .. counts.failed .. " could not be solved)"
+      .. " frames see one, " .. counts.failed .. " could not be solved"
+      .. (counts.first_failure and ("; " .. counts.first_failure) or "") .. ")"
   end
   local reference, placed, seen = chain(kept, tags, o.reference)
   if not placed[reference] then
     return nil, "layout: the reference tag " .. tostring(reference)
       .. " is never seen together with another tag"
   end
-  local P, S, order, frames_used = problem(camera, kept, tags, placed, reference)
+  local P, S, order, frames_used = problem(camera, kept, tags, placed, reference, o.opencv)
   counts.used, counts.elsewhere = #frames_used, #kept - #frames_used
   local T = copy_state(S, { fr = {}, ft = {}, tq = {}, tp = {} })
   local _, sse0 = bundle.cost(P, S)
@@ -402,7 +402,7 @@ function M.calibrate(frames, camera, tags, o, name)
     local c2 = 8 * ((K * sigma) * (K * sigma))
     iterations = iterations + adjust(P, S, T, c2, budget - iterations)
     if stages == 1 then
-      mended = reseat(P, S, T, c2, order, tags, frames_used, camera)
+      mended = reseat(P, S, T, c2, order, tags, frames_used, camera, o.opencv)
       if mended > 0 then
         iterations = iterations + adjust(P, S, T, c2, budget - iterations)
       end

@@ -50,11 +50,13 @@ local function read_options(options, n, fname, spec)
   if type(options) ~= "table" then
     raise(n, fname, "options table expected, got " .. type(options), 1)
   end
-  for key in pairs(options) do
-    if spec[key] == nil then raise(n, fname, "options: unknown key " .. describe(key), 1) end
-  end
-  for key, check in pairs(spec) do
-    local v = options[key]
+  local keys = {}
+  for key in pairs(spec) do keys[#keys + 1] = key end
+  table.sort(keys)
+  local unknown = args.unknown_keys(options, keys, "options")
+  if unknown then raise(n, fname, unknown, 1) end
+  for _, key in ipairs(keys) do
+    local v, check = options[key], spec[key]
     if v ~= nil and not check[1](v) then
       raise(n, fname, "options." .. key .. ": " .. check[2] .. " expected, got " .. describe(v), 1)
     end
@@ -62,9 +64,25 @@ local function read_options(options, n, fname, spec)
   return options
 end
 
+-- `options.order`, as `tagpose.solve` takes it (`tagpose.core.args.read_order`)
+local function is_order(v)
+  return args.read_order(v) ~= nil
+end
+local ORDER = { is_order, "'apriltag' or 'opencv'" }
+
+-- The options a facade hands on: the caller's, and `opencv` (the corners' order read).
+local function settings(o, call)
+  local out = {}
+  for k, v in pairs(o) do out[k] = v end
+  out.opencv = args.read_order(o.order)
+  out.call = call
+  return out
+end
+
 local SOLVE_OPTIONS = {
   sigma = { is_positive, "positive number" },
   max_iterations = { args.is_count, "positive integer" },
+  order = ORDER,
 }
 
 --- The pose of a layout from one frame's detections: one joint least-squares fit over all the
@@ -77,7 +95,8 @@ local SOLVE_OPTIONS = {
 -- @tparam table layout `{tags = {[id] = {size =, position =, quaternion =}}}`
 -- @tparam[opt] table options `sigma` (corner noise, px, for `covariance` and `confidence`;
 --   default: the fit's residuals pooled with `tagpose.uncertainty.DEFAULT_SIGMA`),
---   `max_iterations` (bound on the linearisations of one fit; default 20)
+--   `max_iterations` (bound on the linearisations of one fit; default 20), `order` (the
+--   corners' order: `"apriltag"`, the default, or `"opencv"`, as for `tagpose.solve`)
 -- @treturn table body: `position = {x, y, z}`, `rotation` (nested 3×3), `quaternion`
 --   (`w >= 0`), body → camera; `error` (RMS over the corners used, px); `iterations`;
 --   `covariance` (6×6, order x, y, z, rx, ry, rz, camera frame); `confidence`; `alternative`
@@ -85,8 +104,8 @@ local SOLVE_OPTIONS = {
 --   otherwise); `tags` (indices into `detections` of the detections used), `ids` (their ids),
 --   `skipped` (`{index =, id =, reason =}` for every detection not used)
 -- @return nil, string when no detection gives a pose (the message says why)
--- @raise `bad argument #n to 'solve' (...)` for a detections argument that is not a table, a
---   bad camera, a bad layout entry of a tag detected, or bad options
+-- @raise `bad argument #n to 'solve' (...)` for a detections argument that is not a table (or
+--   is one detection), a bad camera, a bad layout entry of a tag detected, or bad options
 -- @usage
 -- local body = tagpose.layout.solve({{id = 0, corners = c0}, {id = 3, corners = c3}}, camera,
 --   layout)
@@ -104,7 +123,9 @@ function M.solve(detections, camera, layout, options)
   if type(entries) ~= "table" then
     raise(3, "solve", "layout.tags: table {[id] = tag} expected, got " .. type(entries))
   end
-  local o = read_options(options, 4, "solve", SOLVE_OPTIONS)
+  if args.is_detection(detections) then raise(1, "solve", args.ONE_DETECTION) end
+  local o = settings(read_options(options, 4, "solve", SOLVE_OPTIONS),
+    "tagpose.layout.solve(detections, camera, layout, options)")
   -- the entries of the tags detected (the layout may hold many more)
   local tags = {}
   for i = 1, #detections do
@@ -116,7 +137,10 @@ function M.solve(detections, camera, layout, options)
       tags[id] = t
     end
   end
-  return lazy("tagpose.layout.solve").solve(detections, camera, tags, o)
+  local body, why = lazy("tagpose.layout.solve").solve(detections, camera, tags, o)
+  if not body then return nil, args.name_order(why, o.call) end
+  for _, s in ipairs(body.skipped) do s.reason = args.name_order(s.reason, o.call) end
+  return body
 end
 
 local CALIBRATE_OPTIONS = {
@@ -125,6 +149,7 @@ local CALIBRATE_OPTIONS = {
   reference = { model.is_id, "tag id of the layout" },
   robust = { is_positive, "positive number" },
   gauge = { function(v) return v == "planes" or v == "corners" end, "'planes' or 'corners'" },
+  order = ORDER,
 }
 
 --- Calibrate a layout from a recorded log: the tags' poses on the body that the images say.
@@ -137,7 +162,8 @@ local CALIBRATE_OPTIONS = {
 --   linearisations, default 100), `reference` (the tag held fixed while solving; default the
 --   tag seen most), `robust` (the robust loss's scale, in standard deviations of the corner
 --   noise; default 3), `sigma` (the corner noise, px, for the report's standard deviations;
---   default: estimated from the residuals)
+--   default: estimated from the residuals), `order` (the corners' order, as for
+--   `tagpose.solve`)
 -- @treturn table the calibrated layout (same shape; tags that could not be placed keep their
 --   nominal pose)
 -- @treturn table the report (see `tagpose.layout.calibrate`)
@@ -148,22 +174,34 @@ function M.calibrate(frames, camera, layout, options)
   if type(frames) ~= "table" then
     raise(1, "calibrate", "array of frames expected, got " .. type(frames))
   end
+  if args.is_detection(frames) then
+    raise(1, "calibrate", "array of frames expected, got one detection {id =, corners =} "
+      .. "(pass {{detection}})")
+  end
   for i = 1, #frames do
     if type(frames[i]) ~= "table" then
       raise(1, "calibrate", "frames[" .. i .. "]: array of detections expected, got "
         .. type(frames[i]))
+    end
+    if args.is_detection(frames[i]) then
+      raise(1, "calibrate", "frames[" .. i .. "]: " .. args.ONE_DETECTION
+        .. " (frames: an array of frames, each an array of detections)")
     end
   end
   local problem = camera_model.check(camera)
   if problem then raise(2, "calibrate", problem) end
   local tags, why = model.read(layout)
   if not tags then raise(3, "calibrate", why) end
-  local o = read_options(options, 4, "calibrate", CALIBRATE_OPTIONS)
+  local o = settings(read_options(options, 4, "calibrate", CALIBRATE_OPTIONS),
+    "tagpose.layout.calibrate(frames, camera, layout, options)")
   if o.reference ~= nil and not tags[o.reference] then
     raise(4, "calibrate", "options.reference: tag " .. tostring(o.reference)
       .. " is not in the layout")
   end
-  return lazy("tagpose.layout.calibrate").calibrate(frames, camera, tags, o, layout.name)
+  local out, rep = lazy("tagpose.layout.calibrate").calibrate(frames, camera, tags, o,
+    layout.name)
+  if not out then return nil, args.name_order(rep, o.call) end
+  return out, rep
 end
 
 local READ_OPTIONS = {
@@ -178,7 +216,8 @@ local READ_OPTIONS = {
 -- @tparam string path
 -- @tparam[opt] string|table options `{bundle =, size =}`: `bundle` the name of the bundle to
 --   read from a `tags.yaml` of several (or that name alone, as a string); `size` the side of
---   the tags' black squares, which a WPILib field map needs (it has none)
+--   the tags' black squares, which a WPILib field map needs (it has none), in metres as the map
+--   (one larger than twice the map is refused: millimetres?)
 -- @treturn table layout
 -- @return nil, string when the file cannot be read or is not a layout (with its line)
 -- @raise `bad argument #n to 'read'` when path is not a string or an option is wrong

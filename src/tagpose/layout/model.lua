@@ -21,7 +21,7 @@ local args = require("tagpose.core.args")
 local rotation = require("tagpose.core.rotation")
 
 local is_finite, is_positive, describe = compat.is_finite, args.is_positive, args.describe
-local sqrt, floor, abs, max = math.sqrt, math.floor, math.abs, math.max
+local floor, huge = math.floor, math.huge
 
 local M = {}
 
@@ -63,7 +63,8 @@ function M.is_id(id)
 end
 
 --- A quaternion normalised without overflow or underflow: scaled by its largest component,
--- then divided by its length.
+-- then divided by its length (`tagpose.core.rotation.unit_quaternion`).
+-- @function unit_quaternion
 -- @tparam number w finite
 -- @tparam number x
 -- @tparam number y
@@ -72,13 +73,44 @@ end
 -- @treturn number x
 -- @treturn number y
 -- @treturn number z
-function M.unit_quaternion(w, x, y, z)
-  local m = max(abs(w), abs(x), abs(y), abs(z))
-  if not (m > 0) then return nil end
-  w, x, y, z = w / m, x / m, y / m, z / m
-  local n = sqrt(w * w + x * x + y * y + z * z) -- in [1, 2]
-  if not (m * n > 1e-6) then return nil end
-  return w / n, x / n, y / n, z / n
+M.unit_quaternion = rotation.unit_quaternion
+
+--- A tag side larger than this many times a layout's extent contradicts it: a size in another
+-- unit than the positions' (millimetres beside metres). The extent is the diagonal of the box
+-- around the tags' centres (never less than the distance of the two furthest apart), or what
+-- the caller knows of it (a field's length); twice keeps clear of the tags on two adjacent
+-- faces of a cube, whose centres are 0.7 side apart.
+M.SIZE_EXTENT = 2
+
+--- The tag whose size contradicts a layout's extent (`SIZE_EXTENT`), if any.
+-- @tparam table tags the layout's entries by id, `{size =, position = {x =, y =, z =}}`
+--   (as the files give them, finite)
+-- @tparam[opt] number extent what else is known of the layout's extent (0: nothing)
+-- @treturn ?any the id of the largest tag, when its size contradicts the extent
+-- @treturn number its size
+-- @treturn number the extent
+function M.size_contradiction(tags, extent)
+  local x0, y0, z0, x1, y1, z1 = huge, huge, huge, -huge, -huge, -huge
+  local id, size, n = nil, 0, 0
+  for k, t in pairs(tags) do
+    local p = t.position
+    if p.x < x0 then x0 = p.x end
+    if p.x > x1 then x1 = p.x end
+    if p.y < y0 then y0 = p.y end
+    if p.y > y1 then y1 = p.y end
+    if p.z < z0 then z0 = p.z end
+    if p.z > z1 then z1 = p.z end
+    if t.size > size then id, size = k, t.size end
+    n = n + 1
+  end
+  extent = extent or 0
+  if n > 1 then
+    local dx, dy, dz = x1 - x0, y1 - y0, z1 - z0
+    local d = math.sqrt(dx * dx + dy * dy + dz * dz)
+    if d > extent then extent = d end
+  end
+  if extent > 0 and size > M.SIZE_EXTENT * extent then return id, size, extent end
+  return nil
 end
 
 --- Read one tag entry of a layout.

@@ -175,7 +175,7 @@ end
 -- alone for the starts; a tag that cannot be solved alone (seen nearly edge-on, its noisy
 -- corners not a convex quadrilateral) is a passenger: its corners join the joint fit, it gives
 -- no start. The others go into skipped with their reason. Fills points, pixels and the starts.
-local function gather(detections, camera, tags, skipped)
+local function gather(detections, camera, tags, skipped, opencv)
   local used, n, starts = {}, 0, 0
   local first_of = {}
   for i = 1, #detections do
@@ -185,7 +185,7 @@ local function gather(detections, camera, tags, skipped)
       reason = "layout: detection is not a table {id =, corners =}"
     else
       tag = tags[d.id]
-      local ok, why = args.read_corners(d.corners, corners)
+      local ok, why = args.read_corners(d.corners, corners, opencv)
       if not tag then
         reason = "layout: tag id " .. tostring(d.id) .. " is not in the layout"
       elseif not ok then
@@ -296,12 +296,13 @@ end
 -- @tparam table detections array of `{id =, corners =}`
 -- @tparam table camera a checked camera
 -- @tparam table tags read tags by id (`tagpose.layout.model.read_tag`)
--- @tparam table o the options: `sigma`, `max_iterations`
+-- @tparam table o the options: `sigma`, `max_iterations`, `opencv` (the corners in OpenCV's
+--   order)
 -- @treturn table the body (see `tagpose.layout.solve`)
 -- @return nil, string when no detection gives a body pose
 function M.solve(detections, camera, tags, o)
   local skipped = {}
-  local used, n, starts = gather(detections, camera, tags, skipped)
+  local used, n, starts = gather(detections, camera, tags, skipped, o.opencv)
   if starts == 0 then
     -- no tag solved alone: the passengers are skipped with their reasons
     for i = 1, n do

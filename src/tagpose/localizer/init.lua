@@ -139,8 +139,7 @@ function M.localize(detections, camera, map, options)
     args.raise(1, "localize", "detections: table expected, got " .. type(detections), 2)
   end
   if detections.corners ~= nil then
-    args.raise(1, "localize", "a list of detections expected, got one detection (pass "
-      .. "{detection})", 2)
+    args.raise(1, "localize", args.ONE_DETECTION, 2)
   end
   local tags, err = model.read(map)
   if not tags then args.raise(3, "localize", err, 2) end
@@ -233,8 +232,7 @@ function Localizer:update(camera, detections, time, mount)
     args.raise(2, "update", "detections: table expected, got " .. type(detections), 2)
   end
   if detections.corners ~= nil then
-    args.raise(2, "update", "a list of detections expected, got one detection (pass "
-      .. "{detection})", 2)
+    args.raise(2, "update", args.ONE_DETECTION, 2)
   end
   check_time(time, 3, "update")
   local cam

@@ -91,9 +91,10 @@ local function read_options(options, n, fname, level)
           level)
       end
     elseif k == "order" then
-      if v ~= "detector" and v ~= "opencv" then
-        args.raise(n, fname, "options.order: \"detector\" or \"opencv\" expected, got "
-          .. describe(v), level)
+      -- ("apriltag" as every other entry point takes it; "detector" the localizer's first name)
+      if v ~= "detector" and v ~= "apriltag" and v ~= "opencv" then
+        args.raise(n, fname, "options.order: \"apriltag\" (or \"detector\") or \"opencv\""
+          .. " expected, got " .. describe(v), level)
       end
     elseif k == "map_check" then
       if type(v) ~= "boolean" then

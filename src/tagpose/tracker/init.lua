@@ -24,7 +24,8 @@
 -- four numbers per detection so that `tracker:smooth()` can revise every choice with the
 -- evidence of the later frames (`tagpose.tracker.smooth`): for replaying a recorded log.
 --
--- Times are in seconds; pixels as the camera's; lengths in the unit of the tag size.
+-- Times are in seconds (times that look like milliseconds are said once on standard error,
+-- and in `warning`); pixels as the camera's; lengths in the unit of the tag size.
 -- @module tagpose.tracker
 
 local args = require("tagpose.core.args")
@@ -63,9 +64,13 @@ M.Tracker = Tracker
 
 local OPTIONS = { "method", "max_gap", "max_tracks", "smooth", "sigma", "order" }
 
-local function raise(n, fname, message)
-  args.raise(n, fname, message, 3)
+-- Raise a misuse at the caller of the entry point (`depth`: the helpers between them).
+local function raise(n, fname, message, depth)
+  args.raise(n, fname, message, 3 + (depth or 0))
 end
+
+-- the call the corner-order hint names
+local CALL = "tagpose.tracker.new(camera, tag_size, options)"
 
 
 -- What is wrong with a tag_size argument, or nil.
@@ -97,32 +102,36 @@ end
 local function read_options(self, options)
   if options == nil then options = {} end
   if type(options) ~= "table" then
-    raise(3, "new", "options table expected, got " .. type(options))
+    raise(3, "new", "options table expected, got " .. type(options), 1)
   end
   local unknown = args.unknown_keys(options, OPTIONS, "options")
-  if unknown then raise(3, "new", unknown) end
+  if unknown then raise(3, "new", unknown, 1) end
   local method = options.method
   if method ~= nil and method ~= "refined" and method ~= "seed" then
-    raise(3, "new", "options.method: 'refined' or 'seed' expected, got " .. describe(method))
+    raise(3, "new", "options.method: 'refined' or 'seed' expected, got " .. describe(method), 1)
   end
   local max_gap = options.max_gap == nil and M.MAX_GAP or options.max_gap
   if not (is_finite(max_gap) and max_gap >= 0) then
-    raise(3, "new", "options.max_gap: non-negative number expected, got " .. describe(max_gap))
+    raise(3, "new", "options.max_gap: non-negative number expected, got " .. describe(max_gap), 1)
   end
   local max_tracks = options.max_tracks == nil and M.MAX_TRACKS or options.max_tracks
   if not args.is_count(max_tracks) then
     raise(3, "new", "options.max_tracks: positive integer expected, got "
-      .. describe(max_tracks))
+      .. describe(max_tracks), 1)
   end
   local sigma = options.sigma
   if sigma ~= nil and not args.is_positive(sigma) then
-    raise(3, "new", "options.sigma: positive number expected, got " .. describe(sigma))
+    raise(3, "new", "options.sigma: positive number expected, got " .. describe(sigma), 1)
   end
-  local order = options.order
-  if order ~= nil and order ~= "apriltag" and order ~= "opencv" then
-    raise(3, "new", "options.order: 'apriltag' or 'opencv' expected, got " .. describe(order))
+  local opencv, why = args.read_order(options.order)
+  if opencv == nil then raise(3, "new", why, 1) end
+  -- (a gap beyond the filter's longest step is a time in milliseconds: said, not refused)
+  if max_gap > track.MAX_STEP then
+    io.stderr:write(("tagpose.tracker: warning: options.max_gap is %.4g s, beyond the longest"
+      .. " step the tracking filter models (%g s): milliseconds? (max_gap is in seconds: 0.5,"
+      .. " not 500)\n"):format(max_gap, track.MAX_STEP))
   end
-  self.opencv = order == "opencv"
+  self.opencv = opencv
   self.seed, self.max_gap, self.max_tracks = method == "seed", max_gap, max_tracks
   self.sigma2 = sigma and sigma * sigma or nil
   self.recording = options.smooth == true
@@ -138,7 +147,8 @@ end
 --
 --   - `method`: `"refined"` (the default) or `"seed"` (the report's method: one pose per tag,
 --     no tracking filter);
---   - `max_gap`: seconds a track may go unseen and still be continued (default `MAX_GAP`);
+--   - `max_gap`: seconds a track may go unseen and still be continued (default `MAX_GAP`;
+--     one beyond `tagpose.track.MAX_STEP` is said on standard error: milliseconds?);
 --   - `max_tracks`: bound on the live tracks (default `MAX_TRACKS`);
 --   - `sigma`: the corner noise in pixels, for the poses' `covariance` (default: each track's
 --     running estimate from its residuals; a new track's first pose, the single-frame default
@@ -299,7 +309,7 @@ local function detection(self, i, id, t, time, row, entry)
     if self.recording then smooth.record(self.recorded, row, t.row, first, a, b) end
     t.row = row
   else
-    entry.reason = first
+    entry.reason = args.name_order(first, CALL)
   end
   return true
 end
@@ -327,17 +337,14 @@ local EMPTY = {}
 local function feed(self, detections, time, fname, solving)
   if detections == nil then detections = EMPTY end
   if type(detections) ~= "table" then
-    args.raise(1, fname, "array of detections expected, got " .. type(detections), 4)
+    args.raise(1, fname, "array of detections expected, got " .. type(detections), 3)
   end
-  if detections.corners ~= nil then
-    args.raise(1, fname, "array of detections expected, got one detection {id =, corners =} "
-      .. "(pass {detection})", 4)
-  end
+  if args.is_detection(detections) then args.raise(1, fname, args.ONE_DETECTION, 3) end
   if time ~= nil and not is_finite(time) then
-    args.raise(2, fname, "finite number expected for time, got " .. describe(time), 4)
+    args.raise(2, fname, "finite number expected for time, got " .. describe(time), 3)
   end
   local problem = camera_model.check(self.camera)
-  if problem then args.raise(0, fname, "the tracker's camera was changed: " .. problem, 4) end
+  if problem then args.raise(0, fname, "the tracker's camera was changed: " .. problem, 3) end
   self.solving = solving
   -- (room for one entry, the common frame, made with the array: filled key by key a table's
   -- parts grow through a resize at each power of two; the entries are made with all their keys)
@@ -348,6 +355,11 @@ local function feed(self, detections, time, fname, solving)
     seen.restarted = true
   end
   if self.time then seen.warning = cadence(self, time - self.time) end
+  -- said on standard error too, once per tracker (the caller may never look at `warning`)
+  if seen.warning and not self.warned then
+    self.warned = true
+    io.stderr:write("tagpose.tracker: warning: ", (seen.warning:gsub("^tracker: ", "")), "\n")
+  end
   self.time = time
   self.frames = self.frames + 1
   tracks.expire(self.live, time, self.max_gap)
@@ -389,7 +401,8 @@ end
 --   array's field `skipped` counts the entries skipped (malformed, or an id without a tag
 --   size; an entry whose corners give no pose has a track and a reason), `restarted` is true
 --   when the time went back, and `warning` says when the times look like milliseconds or frame
---   numbers (steps far beyond `max_gap` at a steady cadence)
+--   numbers (steps far beyond `max_gap` at a steady cadence; said on standard error too, the
+--   first time)
 -- @raise `bad argument #n to 'update' (...)` when `detections` is not an array (one detection
 --   passed alone included) or `time` not a finite number
 function Tracker:update(detections, time)
