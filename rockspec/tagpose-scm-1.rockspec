@@ -88,6 +88,7 @@ build = {
     ["tagpose.layout.schur"] = "src/tagpose/layout/schur.lua",
     ["tagpose.layout.solve"] = "src/tagpose/layout/solve.lua",
     ["tagpose.localizer"] = "src/tagpose/localizer/init.lua",
+    ["tagpose.localizer.bias"] = "src/tagpose/localizer/bias.lua",
     ["tagpose.localizer.engine"] = "src/tagpose/localizer/engine.lua",
     ["tagpose.localizer.filter"] = "src/tagpose/localizer/filter.lua",
     ["tagpose.localizer.fit"] = "src/tagpose/localizer/fit.lua",

@@ -8,6 +8,7 @@ local frame = require("tagpose.localizer.frame")
 local filter = require("tagpose.localizer.filter")
 local results = require("tagpose.localizer.result")
 local mapcheck = require("tagpose.localizer.mapcheck")
+local bias = require("tagpose.localizer.bias")
 local camera_mod = require("tagpose.core.camera")
 local args = require("tagpose.core.args")
 
@@ -17,7 +18,6 @@ local result, with_yaw = results.result, results.with_yaw
 
 local M = {}
 
-local bias_update, bias_cov -- (below)
 
 --- A tag is left out once what it adds to the frames' fits (χ²(8) for a tag where the map says,
 -- 8 on average) averages more than this...
@@ -61,64 +61,14 @@ local function copy_state(s)
   local c = {}
   for k, v in pairs(s) do c[k] = v end
   if s.filter then c.filter = s.filter:copy() end
-  -- (the tag statistics are replaced, never changed in place, entry by entry)
+  -- (the tag statistics are replaced, never changed in place, entry by entry; the bias sums
+  -- are replaced whole)
   local st = {}
   for k, v in pairs(s.tag_stats) do st[k] = v end
   c.tag_stats = st
-  -- (the bias sums are replaced, never changed in place)
   return c
 end
 
--- The bias sums after a frame of camera `cam` with sensitivities `sens` and weight w: every sum
--- forgets by `BIAS_MEMORY`, the frame's added; new tables (snapshots keep theirs).
-function bias_update(self, s, cam, sens, w)
-  local old = s.bias or { w = 0, cams = {}, tags = {} }
-  local a = M.BIAS_MEMORY
-  local new = { w = a * old.w + w, cams = {}, tags = {} }
-  for c = 1, self.ncameras do
-    local e, add = old.cams[c], c == cam and sens.mount
-    if e or add then
-      local v = {}
-      for k = 1, 18 do v[k] = a * (e and e[k] or 0) + (add and w * add[k] or 0) end
-      new.cams[c] = v
-    end
-  end
-  local ids = self.tags.ids
-  for i = 1, #ids do
-    local id = ids[i]
-    local e, add = old.tags[id], sens.tags[id]
-    if e or add then
-      local v = {}
-      for k = 1, 9 do v[k] = a * (e and e[k] or 0) + (add and w * add[k] or 0) end
-      new.tags[id] = v
-    end
-  end
-  s.bias = new
-end
-
--- The position's covariance from the mounts' and the map's errors: each error's mean
--- sensitivity S̄ = Σ w S / Σ w, summed as S̄ S̄ᵀ (their covariance over σ per axis is I).
-function bias_cov(self, s)
-  local b = s.bias
-  if not b or not (b.w > 0) then return 0, 0, 0 end
-  local iw = 1 / b.w
-  local b11, b12, b22 = 0, 0, 0
-  local function add(S, cols)
-    for c = 1, cols do
-      local x, y = S[c] * iw, S[cols + c] * iw
-      b11, b12, b22 = b11 + x * x, b12 + x * y, b22 + y * y
-    end
-  end
-  for c = 1, self.ncameras do
-    if b.cams[c] then add(b.cams[c], 6) end
-  end
-  local ids = self.tags.ids
-  for i = 1, #ids do
-    local S = b.tags[ids[i]]
-    if S then add(S, 3) end
-  end
-  return b11, b12, b22
-end
 
 -- The gyro's heading at time t (extrapolated from the last sample by its rate), unwrapped;
 -- false before any gyro sample (the odometry's heading stands in).
@@ -248,7 +198,7 @@ local function estimate(self, t, name, g, r, used, rejected)
   local cov = {}
   for i = 1, 36 do cov[i] = 0 end
   local function set(i, j, v) cov[(i - 1) * 6 + j], cov[(j - 1) * 6 + i] = v, v end
-  local b11, b12, b22 = bias_cov(self, s)
+  local b11, b12, b22 = bias.covariance(s.bias, self.ncameras, self.tags.ids)
   local h1, h2, h3 = f:heading_cov()
   set(1, 1, P[1] + b11); set(1, 2, P[2] + b12); set(2, 2, P[NS + 2] + b22)
   set(1, 6, h1); set(2, 6, h2); set(6, 6, h3 + o.gyro_sigma ^ 2)
@@ -392,7 +342,8 @@ local function process_frame(self, name, detections, t, moved)
       -- away): the frames' sensitivities to each error averaged as the frames weigh in the
       -- estimate (by their information, forgetting with `BIAS_MEMORY`), so that a bias the
       -- frames share stays whole and one that turns with the view averages out
-      bias_update(self, s, cam.index, sol.sens, 1 / (C[1] + C[8]))
+      bias.update(s, self.ncameras, self.tags.ids, cam.index, sol.sens, 1 / (C[1] + C[8]),
+        M.BIAS_MEMORY)
     else
       for _, id in ipairs(sol.used) do
         rejected[#rejected + 1] = { id = id, why = "the frame disagrees with the estimate" }
