@@ -90,6 +90,21 @@ local function corner(P, K, o, k, fr, ft, tq, tp)
     r1, r2, r3, r4, r5, r6, r7, r8, r9
 end
 
+--- The robust loss of one observation's squared residual `s`: `c²·ln(1 + s/c²)`, with
+-- `ln(1 + x)` taken as `ln(u)·x/(u - 1)`, `u = 1 + x` (exact to round-off where `1 + x`
+-- rounds to 1: a large `c²` gives `s`, the plain square, not 0).
+-- @tparam number s px²
+-- @tparam number c2 px²
+-- @treturn number
+function M.rho(s, c2)
+  local x = s / c2
+  local u = 1 + x
+  if u == 1 then return s end
+  return c2 * log(u) * (x / (u - 1))
+end
+
+local rho = M.rho
+
 --- The robust cost at a state, and each observation's squared residual into `P.s`.
 -- @tparam table P the problem
 -- @tparam table S the state `{fr =, ft =, tq =, tp =}`
@@ -109,7 +124,7 @@ function M.cost(P, S, c2)
     end
     s[o] = so
     sse = sse + so
-    total = total + (c2 and c2 * log(1 + so / c2) or so)
+    total = total + (c2 and rho(so, c2) or so)
   end
   return total, sse
 end

@@ -312,8 +312,8 @@ local function reseat(P, S, T, c2, order, tags, frames_used, camera, opencv)
   for f = 1, P.nframes do
     local a, b = 0, 0
     for o = P.first[f], P.last[f] do
-      a = a + c2 * math.log(1 + before[o] / c2)
-      b = b + c2 * math.log(1 + P.s[o] / c2)
+      a = a + bundle.rho(before[o], c2)
+      b = b + bundle.rho(P.s[o], c2)
     end
     if b < a then
       mended = mended + 1
