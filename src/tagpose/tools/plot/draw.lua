@@ -143,6 +143,8 @@ function M.draw(recorder, options, settings)
   for k, r in ipairs(recorder_model.ROTATION[recorder.rotation]) do
     right[#right + 1] = panel(recorder, series, 3 + k, r.name, r.title, r.unit, r.wrap)
   end
+  for _, p in ipairs(left) do p.empty = options.empty end
+  for _, p in ipairs(right) do p.empty = options.empty end
   local entries = legend(recorder, tracks, series, options.max_legend or 60)
   local svg, shown = figure.figure({ title = options.title, columns = { left, right },
     legend = entries, width = options.width, panel_height = options.panel_height })

@@ -184,9 +184,10 @@ local function check_title(fname, n, options)
       refuse("options." .. name .. ": number >= 100 expected, got " .. args.describe(v))
     end
   end
-  local unit = options.length_unit
-  if unit ~= nil and type(unit) ~= "string" then
-    refuse("options.length_unit: string expected, got " .. args.describe(unit))
+  for _, name in ipairs({ "length_unit", "empty" }) do
+    if options[name] ~= nil and type(options[name]) ~= "string" then
+      refuse("options." .. name .. ": string expected, got " .. args.describe(options[name]))
+    end
   end
 end
 
@@ -199,7 +200,8 @@ end
 -- @tparam table recorder a `recorder`
 -- @tparam[opt] table options `title`, `length_unit` (the unit of the tag size, for the
 --   position titles, default `"m"`), `width` (px, default 1000), `panel_height` (px, default
---   150), `max_legend` (entries, default 60; the rest are summed up in one)
+--   150), `max_legend` (entries, default 60; the rest are summed up in one), `empty` (what
+--   a panel with nothing to draw says, default `"no data"`: why there is nothing)
 -- @treturn string the SVG document
 -- @treturn table what it shows: `{panels = n, series = n, tags = {id, ...}, tracks = n}`
 --   (a series is one source's line of one track in one panel)

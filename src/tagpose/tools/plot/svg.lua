@@ -243,8 +243,26 @@ function M.panel(out, p, a)
   grid(out, a, y_ticks)
   tick_labels(out, a, p, y_ticks, y_decimals)
   if not has_data then
-    out[#out + 1] = ('<text class="no-data" x="%s" y="%s" text-anchor="middle" fill="#999999">'
-      .. 'no data</text>'):format(coord(left + width / 2), coord(top + height / 2))
+    -- the panel's reason (p.empty, default "no data"), in lines that fit the panel
+    local lines, line = {}, nil
+    local fit = math.max(20, math.floor(width / CHAR / 1.1))
+    for word in (p.empty or "no data"):gmatch("%S+") do
+      if line and #line + 1 + #word > fit then
+        lines[#lines + 1] = line
+        line = word
+      else
+        line = line and line .. " " .. word or word
+      end
+    end
+    lines[#lines + 1] = line
+    local cx = coord(left + width / 2)
+    out[#out + 1] = ('<text class="no-data" x="%s" y="%s" text-anchor="middle" fill="#999999">')
+      :format(cx, coord(top + height / 2 - 7 * (#lines - 1)))
+    for k, l in ipairs(lines) do
+      out[#out + 1] = ('<tspan x="%s" dy="%s">%s</tspan>'):format(cx, k == 1 and "0" or "14",
+        escape(l))
+    end
+    out[#out + 1] = "</text>"
   end
   -- the series, clipped to the plot area
   out[#out + 1] = ('<g clip-path="url(#clip-%s)">'):format(escape(a.id))
