@@ -231,7 +231,7 @@ describe("tagpose-replay and time", function()
     assert.equal("replay: log: /nonexistent/corners.csv: No such file or directory\n", text)
     text, status = run.script("bin/tagpose-replay", dir .. "/corners.csv", "--max-gap", "3")
     assert.equal(2, status)
-    assert.truthy(text:find("replay: --max-gap: a time with its unit expected (0.5s, 500ms),"
+    assert.truthy(text:find("replay: --max-gap: a time with its unit (0.5s, 500ms) expected,"
       .. " got 3 (a bare number counted frames before; the tracker's gap is in seconds: 3"
       .. " frames at 30 fps are --max-gap 0.1s)", 1, true), text)
     for _, bad in ipairs({ { "--fps", "0" }, { "--sigma", "-1" }, { "--max-gap", "1h" } }) do

@@ -28,9 +28,7 @@
 -- @module tagpose.tools.calibrate
 
 local tagpose = require("tagpose")
-local compat = require("tagpose.core.compat")
 local io_layout = require("tagpose.formats.layout")
-local output = require("tagpose.formats.output")
 local model = require("tagpose.layout.model")
 local log = require("tagpose.tools.log")
 local files = require("tagpose.tools.files")
@@ -39,66 +37,89 @@ local frame = require("tagpose.tools.command")
 local deg, abs = math.deg, math.abs
 local id_text = io_layout.id_text
 
+local M = {}
+
 local USAGE = "usage: tagpose-calibrate LOG.csv (--layout NOMINAL | --cube TAG_SIZE,BLOCK_SIZE)\n"
   .. "  [--camera CAMERA] [--out CALIBRATED.lua|.yaml|.csv] [--bundle NAME] [--unit NAME]\n"
-  .. "  [--reference ID] [--gauge planes|corners] [--robust K] [--max-iterations N]\n"
+  .. "  [--order apriltag|opencv] [--reference ID] [--gauge planes|corners] [--robust K]\n"
+  .. "  [--max-iterations N]\n"
 
-local cmd = frame.new("calibrate", USAGE)
+local SPEC = {
+  about = "Calibrate a layout (a glued cube, a board, the tags on a robot) from a corner log:"
+    .. " print per tag what is off its nominal place, and write the calibrated layout.",
+  arguments = {
+    { name = "LOG.csv", key = "log", what = "corner log", help = "the corner log"
+      .. " (frame,tag,u1,v1,...,u4,v4; the rows of one frame are one image)" },
+  },
+  options = {
+    { name = "--layout", kind = "string", meta = "NOMINAL", help = "the nominal layout: a Lua"
+      .. " layout file, an apriltag_ros tags.yaml or a CSV table id,size,x,y,z,qw,qx,qy,qz" },
+    { name = "--cube", kind = "sizes", count = 2, meta = "TAG_SIZE,BLOCK_SIZE",
+      what = "TAG_SIZE,BLOCK_SIZE (0 < TAG_SIZE < BLOCK_SIZE, each with an optional unit m,"
+        .. " cm, mm, in, ft)",
+      check = function(xs)
+        if not (xs[1] < xs[2]) then
+          return "TAG_SIZE,BLOCK_SIZE (0 < TAG_SIZE < BLOCK_SIZE) expected"
+        end
+      end,
+      help = "instead of --layout: a cube of side BLOCK_SIZE with tags 0-5 of side TAG_SIZE"
+        .. " centred on its faces +x, -x, +y, -y, +z, -z (22.9mm,54.8mm)" },
+    { name = "--camera", kind = "string", meta = "CAMERA", default_text = "camera.lua beside"
+      .. " LOG.csv", help = "the camera file (Lua, ROS or CameraInfo YAML, OpenCV FileStorage,"
+      .. " Kalibr)" },
+    { name = "--out", kind = "string", meta = "CALIBRATED", help = "write the calibrated"
+      .. " layout, in the format its extension names (.lua, .yaml, .csv)" },
+    { name = "--bundle", kind = "string", meta = "NAME", help = "the bundle of a tags.yaml that"
+      .. " has several" },
+    { name = "--unit", kind = "string", meta = "NAME", default_text = "--cube's unit, else m",
+      help = "the unit of the layout's lengths (a --cube given in another of m, cm, mm, in, ft"
+        .. " is converted to it); corrections are printed in mm for m, cm and mm" },
+    { name = "--order", kind = "choice", meta = "ORDER", choices = { "apriltag", "opencv" },
+      default = "apriltag", help = "the corners' order: apriltag (the detector's c1..c4) or"
+        .. " opencv (OpenCV's and ArUco's: top-left, top-right, bottom-right, bottom-left)" },
+    { name = "--reference", kind = "integer", meta = "ID", min = -2 ^ 53 + 1, max = 2 ^ 53 - 1,
+      what = "tag id (" .. model.ID .. ")", default_text = "the tag seen most",
+      help = "the tag held fixed, one of the layout's" },
+    { name = "--gauge", kind = "choice", meta = "planes|corners", choices = { "planes",
+      "corners" }, default = "planes", help = "how the result is moved onto the nominal"
+      .. " layout: by the tags' planes or by their corners" },
+    { name = "--robust", kind = "number", meta = "K", min = 1, max = 1e100, what = "a number of"
+      .. " at least 1 (below it most detections weigh as outliers)", default = 3,
+      help = "the robust loss's scale, in corner noise deviations: a detection of RMS residual"
+        .. " K times the noise weighs half" },
+    { name = "--max-iterations", kind = "integer", meta = "N", default = 100,
+      help = "the bound on the iterations of the adjustment" },
+  },
+}
+
+local cmd = frame.new("calibrate", USAGE, SPEC)
 local usage, fail, refuse = cmd.usage, cmd.fail, cmd.refuse
-
-local M = {}
 
 local MM = { m = 1000, cm = 10, mm = 1 }
 
--- The command line into a table.
+-- The command line into a table, and tagpose.layout.calibrate's options.
 local function parse(argv)
-  local opt, options = {}, {}
-  local args = cmd.args(argv)
-  local value, number = args.value, args.number
-  for a in args.next do
-    if a == "--help" or a == "-h" then
-      cmd.help()
-    elseif a == "--layout" then
-      opt.layout = value(a)
-    elseif a == "--cube" then
-      local v = value(a)
-      local s, b = v:match("^%s*([^,]-)%s*,%s*([^,]-)%s*$")
-      s, b = compat.decimal(s or ""), compat.decimal(b or "")
-      if not (s and b and s > 0 and b > s and b < math.huge) then
-        usage("--cube: TAG_SIZE,BLOCK_SIZE (0 < TAG_SIZE < BLOCK_SIZE) expected, got " .. v)
-      end
-      opt.cube = { s, b }
-    elseif a == "--camera" then
-      opt.camera = value(a)
-    elseif a == "--out" then
-      opt.out = value(a)
-    elseif a == "--bundle" then
-      opt.bundle = value(a)
-    elseif a == "--unit" then
-      opt.unit = value(a)
-    elseif a == "--reference" then
-      options.reference = number(a, model.is_id, "tag id (" .. model.ID .. ")")
-    elseif a == "--gauge" then
-      options.gauge = value(a)
-      if options.gauge ~= "planes" and options.gauge ~= "corners" then
-        usage("--gauge: planes or corners expected, got " .. options.gauge)
-      end
-    elseif a == "--robust" then
-      options.robust = args.positive(a)
-    elseif a == "--max-iterations" then
-      options.max_iterations = number(a, function(x) return x >= 1 and x == math.floor(x)
-        and x < math.huge end, "positive integer")
-    elseif a:sub(1, 2) == "--" then
-      usage("unknown option " .. a)
-    elseif not opt.log then
-      opt.log = a
-    else
-      usage("one corner log expected, got " .. opt.log .. " and " .. a)
-    end
-  end
-  if not opt.log then usage() end
+  local opt = cmd.parse(argv)
   if not opt.layout and not opt.cube then usage("give the nominal layout: --layout or --cube") end
   if opt.layout and opt.cube then usage("--layout and --cube: give one") end
+  if opt.cube then
+    local unit = opt.cube_unit
+    if unit and opt.unit and opt.unit ~= unit then
+      if not frame.UNITS[opt.unit] then
+        usage(("--unit %s: --cube is in %s; --unit converts it to one of m, cm, mm, in, ft")
+          :format(opt.unit, unit))
+      end
+      opt.cube = { frame.convert(opt.cube[1], unit, opt.unit),
+        frame.convert(opt.cube[2], unit, opt.unit) }
+    end
+    opt.unit = opt.unit or unit
+    local bare = not opt.unit and frame.bare_metres("--cube", opt.given.cube, opt.cube[1])
+    if bare then usage(bare .. ", or --unit") end
+  end
+  opt.unit = opt.unit or "m"
+  local options = { reference = opt.reference, gauge = opt.given.gauge and opt.gauge or nil,
+    robust = opt.given.robust and opt.robust or nil,
+    max_iterations = opt.given.max_iterations and opt.max_iterations or nil }
   return opt, options
 end
 
@@ -116,9 +137,10 @@ end
 
 -- The corner log (`file`, opened from `path`, closed here) read into frames of detections
 -- `{id =, corners =}` (rows of one frame number, in the order the numbers first come), keeping
--- nothing else of a row; the number of rows, and the malformed rows (the first 10 kept, with
+-- nothing else of a row (the corners in the detector's order, reversed from OpenCV's when
+-- `opencv`); the number of rows, and the malformed rows (the first 10 kept, with
 -- their count).
-local function read_frames(path, file)
+local function read_frames(path, file, opencv)
   local reader, err = log.corner_reader(file)
   if not reader then fail(err:find(path, 1, true) and err or path .. ": " .. err) end
   local frames, index, nrows, problems = {}, {}, 0, { n = 0 }
@@ -133,8 +155,10 @@ local function read_frames(path, file)
         index[det.frame] = k
         frames[k] = {}
       end
-      local f = frames[k]
-      f[#f + 1] = { id = det.tag, corners = det.corners }
+      local f, c = frames[k], det.corners
+      -- OpenCV's order (c4, c3, c2, c1) into the detector's, as options.order does for a solve
+      if opencv then c = { c[4], c[3], c[2], c[1] } end
+      f[#f + 1] = { id = det.tag, corners = c }
     else
       problems.n = problems.n + 1
       if #problems < 10 then problems[#problems + 1] = { line = line, reason = reason } end
@@ -174,10 +198,7 @@ local function open_output(opt, camera_path, open)
   if clash then refuse(clash) end
   local _, why = io_layout.encode(opt.out, { ids = {} })
   if why then usage("--out: " .. why:gsub("^layout: ", "")) end
-  local out, err = output.open(opt.out)
-  if not out then fail(err) end
-  open[#open + 1] = out
-  return out
+  return cmd.output(open, opt.out, "the calibrated layout (--out)")
 end
 
 local function run(argv, open)
@@ -201,11 +222,20 @@ local function run(argv, open)
     if not nominal then fail(lerr) end
   end
   -- the log
-  local frames, nrows, problems = read_frames(opt.log, log_file)
+  if options.reference and not nominal.tags[options.reference] then
+    local ids = {}
+    for id in pairs(nominal.tags) do ids[#ids + 1] = id end
+    table.sort(ids)
+    for i, id in ipairs(ids) do ids[i] = id_text(id) end
+    usage(("--reference %s: no tag %s in the layout (its tags: %s)"):format(
+      id_text(options.reference), id_text(options.reference), table.concat(ids, ", ", 1,
+      math.min(#ids, 20)) .. (#ids > 20 and ", ..." or "")))
+  end
+  local frames, nrows, problems = read_frames(opt.log, log_file, opt.order == "opencv")
   local ok, layout, report = pcall(tagpose.layout.calibrate, frames, camera, nominal, options)
   if not ok then fail(tostring(layout)) end
-  if not layout then fail(report) end
-  local unit = opt.unit or "m"
+  if not layout then fail((report:gsub("options%.order = 'opencv'", "--order opencv"))) end
+  local unit = opt.unit
   local scale, shown = MM[unit] or 1, MM[unit] and "mm" or unit
   say("calibrate %s: %d rows in %d frames%s", opt.log, nrows, #frames,
     problems.n > 0 and (", " .. problems.n .. " malformed rows skipped") or "")

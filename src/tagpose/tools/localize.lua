@@ -49,10 +49,44 @@ local format, concat = string.format, table.concat
 local decimal = compat.decimal
 
 local USAGE = "usage: tagpose-localize CORNERS.csv --map MAP --cameras CAMERAS.lua\n"
-  .. "  [--odometry ODOMETRY.csv] [--gyro GYRO.csv] [--single] [--tag-size S] [--max-gap S]\n"
-  .. "  [--map-check CHECK.csv] [--svg PLOT.svg] --out POSES.csv\n"
+  .. "  [--odometry ODOMETRY.csv] [--gyro GYRO.csv] [--single] [--tag-size S[UNIT]]\n"
+  .. "  [--max-gap S] [--map-check CHECK.csv] [--svg PLOT.svg] --out POSES.csv\n"
 
-local cmd = command.new("localize", USAGE)
+local SPEC = {
+  about = "Replay a robot's log (corners of several cameras, odometry, gyro) through"
+    .. " tagpose.localizer and write where the robot was at every camera frame.",
+  arguments = {
+    { name = "CORNERS.csv", key = "corners", what = "corner log", help = "time,camera,tag,"
+      .. "u1,v1,...,u4,v4 (the rows of one time and camera are one frame; times in seconds)" },
+  },
+  options = {
+    { name = "--map", kind = "string", meta = "MAP", help = "the map: a WPILib field JSON, or"
+      .. " any layout file tagpose.layout.read takes (required)" },
+    { name = "--cameras", kind = "string", meta = "CAMERAS.lua", help = "the cameras, a Lua"
+      .. " data file {NAME = {fx, fy, cx, cy, ..., mount = {position =, quaternion =}}, ...,"
+      .. " tag_size = S} (required)" },
+    { name = "--odometry", kind = "string", meta = "ODOMETRY.csv", help = "time,x,y,yaw: the"
+      .. " robot's dead-reckoned pose" },
+    { name = "--gyro", kind = "string", meta = "GYRO.csv", help = "time,yaw: the gyro's"
+      .. " heading, radians (any offset)" },
+    { name = "--max-gap", kind = "number", meta = "S", default_text = "1", help = "the"
+      .. " longest gap allowed between two odometry or two gyro rows, in seconds (a sensor"
+      .. " that stopped)" },
+    { name = "--single", kind = "flag", help = "each frame alone, with the gyro and the floor"
+      .. " as priors (no odometry)" },
+    { name = "--tag-size", kind = "size", meta = "S[UNIT]", default_text = "CAMERAS.lua's"
+      .. " tag_size", help = "the side of the map's tags, with an optional unit (m, cm, mm,"
+      .. " in, ft; without one, metres)" },
+    { name = "--map-check", kind = "string", meta = "CHECK.csv", help = "write where each map"
+      .. " tag was seen against where the map puts it" },
+    { name = "--svg", kind = "string", meta = "PLOT.svg", help = "draw the field from above:"
+      .. " the map's tags, the path with its 95 % ellipses, the odometry" },
+    { name = "--out", kind = "string", meta = "POSES.csv", help = "write the robot's pose at"
+      .. " every camera frame (required)" },
+  },
+}
+
+local cmd = command.new("localize", USAGE, SPEC)
 local usage, fail, refuse = cmd.usage, cmd.fail, cmd.refuse
 
 local M = {}
@@ -62,33 +96,19 @@ local MAX_GAP = 1 -- s between two odometry or gyro rows, unless --max-gap says 
 local MAX_CAMERAS_BYTES = 1048576
 
 local function parse(argv)
-  local opt = {}
-  local args = cmd.args(argv)
-  local value = args.value
-  for a in args.next do
-    if a == "--help" or a == "-h" then
-      cmd.help()
-    elseif a == "--map" or a == "--cameras" or a == "--odometry" or a == "--gyro"
-      or a == "--out" or a == "--map-check" or a == "--svg" then
-      opt[a:sub(3):gsub("-", "_")] = value(a)
-    elseif a == "--tag-size" then
-      opt.tag_size = args.positive(a)
-    elseif a == "--max-gap" then
-      opt.max_gap = args.positive(a)
-    elseif a == "--single" then
-      opt.single = true
-    elseif a:sub(1, 2) == "--" then
-      usage("unknown option " .. a)
-    elseif not opt.corners then
-      opt.corners = a
-    else
-      usage("one corner log expected, got " .. opt.corners .. " and " .. a)
-    end
-  end
-  if not opt.corners then usage() end
+  local opt = cmd.parse(argv)
   if not opt.map then usage("give the map: --map MAP") end
   if not opt.cameras then usage("give the cameras: --cameras CAMERAS.lua") end
   if not opt.out then usage("give the output: --out POSES.csv") end
+  if opt.tag_size then
+    -- the map is in metres: a size with its unit converted, one without read as metres
+    if opt.tag_size_unit then
+      opt.tag_size = command.convert(opt.tag_size, opt.tag_size_unit, "m")
+    else
+      local bare = command.bare_metres("--tag-size", opt.given.tag_size, opt.tag_size)
+      if bare then usage(bare) end
+    end
+  end
   return opt
 end
 
@@ -217,21 +237,9 @@ local function run(argv, open)
     { name = "the plot (--svg)", path = opt.svg } }
   local clash = files.clash(inputs, outputs)
   if clash then refuse(clash) end
-  local out, err = output.open(opt.out)
-  if not out then fail(err) end
-  open[#open + 1] = out
-  local check
-  if opt.map_check then
-    check, err = output.open(opt.map_check)
-    if not check then fail(err) end
-    open[#open + 1] = check
-  end
-  local plot
-  if opt.svg then
-    plot, err = output.open(opt.svg)
-    if not plot then fail(err) end
-    open[#open + 1] = plot
-  end
+  local out = cmd.output(open, opt.out, "the poses (--out)")
+  local check = opt.map_check and cmd.output(open, opt.map_check, "the map check (--map-check)")
+  local plot = opt.svg and cmd.output(open, opt.svg, "the plot (--svg)")
   local cameras = read_cameras(opt.cameras)
   local size = opt.tag_size or cameras.tag_size
   local map, merr = tagpose.layout.read(opt.map, size and { size = size } or nil)

@@ -62,7 +62,7 @@ local MAX_GROUP, MAX_IDS = M.MAX_GROUP, M.MAX_IDS
 -- @treturn table the tracker
 function M.tracker(opt, camera, sizes, smooth)
   return tagpose.tracker.new(camera, sizes, { method = opt.method, max_gap = opt.max_gap,
-    sigma = opt.sigma, smooth = smooth or nil })
+    sigma = opt.sigma, order = opt.order, smooth = smooth or nil })
 end
 
 --- A replay's record (see the module's header), nothing read yet.
@@ -84,7 +84,8 @@ function M.new(opt, camera, sizes, tracker, out, clock, smoothed)
     errors = stats.histogram(), residuals = stats.histogram(), iterations = {}, tags = {},
     ntags = 0, more_tags = false, first_frame = nil, last_frame = nil,
     repeated = { rows = 0, max = 1, tags = {}, ntags = 0, first = nil },
-    order = { rows = 0, first = nil }, options = { method = opt.method, sigma = opt.sigma },
+    order = { rows = 0, first = nil }, options = { method = opt.method, sigma = opt.sigma,
+      order = opt.order },
     frame_counts = {}, frame_ids = 0, uncounted = 0, counted_frame = nil,
     previous_frame = nil, detections = {} }
 end
@@ -166,7 +167,11 @@ local function solve_group(run, group, time)
     row.track = e.track
     local pose, reason
     if tracking then pose, reason = e.pose, e.reason else pose, reason = solve_row(run, row) end
-    if reason then reason = reason:gsub("^tracker: entry %d+: ", "tracker: ") end
+    if reason then
+      -- the command's option where the library names its own
+      reason = reason:gsub("^tracker: entry %d+: ", "tracker: ")
+        :gsub("options%.order = 'opencv'", "--order opencv")
+    end
     row.pose, row.reason = pose, reason or (not pose and "no pose") or nil
     if pose and smoothed then
       local r = fed + k

@@ -50,9 +50,10 @@
 -- each other, under any name (`tagpose.tools.files`: the file system's device and inode); they
 -- are opened before anything is read and written whole (`tagpose.formats.output`: a device, a
 -- FIFO or a pipe written through, in place). Exit status: 0 when the log was replayed
--- (whatever its rows gave), 1 when a file cannot be read or written (standard output
--- included), 2 on a usage error or an output that is an input; a pipe closed by its reader
--- ends the command by SIGPIPE (Lua cannot ignore it).
+-- and a row at least was solved, 1 when no row was (the reason on standard error and in the
+-- plot's panels, the pose log and the plot written) or a file cannot be read or written
+-- (standard output included), 2 on a usage error or an output that is an input; a pipe
+-- closed by its reader ends the command by SIGPIPE (Lua cannot ignore it).
 --
 -- Its parts: `tagpose.tools.replay.command` (its options, on `tagpose.tools.command`: the
 -- ways out, option readers and inputs it shares with tagpose-calibrate),
@@ -72,7 +73,7 @@ local clock = require("tagpose.tools.replay.clock")
 local compare = require("tagpose.tools.replay.compare")
 local summary = require("tagpose.tools.replay.summary")
 local files = require("tagpose.tools.files")
-local output = require("tagpose.formats.output")
+local frame = require("tagpose.tools.command")
 
 local usage, fail = command.usage, command.fail
 
@@ -94,6 +95,16 @@ local function refuse_clashes(opt, camera_path)
   if clash then command.refuse(clash) end
 end
 
+-- sizes (a size, or sizes by id) moved from one unit to another
+local function convert_sizes(sizes, from, to)
+  if type(sizes) ~= "table" then return frame.convert(sizes, from, to) end
+  local out = {}
+  for k, v in pairs(sizes) do
+    out[k] = type(v) == "number" and frame.convert(v, from, to) or v
+  end
+  return out
+end
+
 -- the camera file, what it says, the tag sizes and the length unit; the replay's tracker
 local function load_camera(opt, camera_path)
   local camera, info = tagpose.calibration.read(camera_path)
@@ -104,14 +115,22 @@ local function load_camera(opt, camera_path)
   if sizes == nil then
     usage(camera_path .. " has no tag_size; give --tag-size S")
   end
+  -- the unit the sizes are given in; --unit another: the sizes converted to it
+  local given = opt.tag_size and opt.tag_size_unit or not opt.tag_size and info.unit or nil
+  if opt.unit and given and opt.unit ~= given then
+    if not (frame.UNITS[opt.unit] and frame.UNITS[given]) then
+      usage(("--unit %s: the tag size is in %s; --unit converts it to one of m, cm, mm, in, ft")
+        :format(opt.unit, given))
+    end
+    sizes = convert_sizes(sizes, given, opt.unit)
+  end
   -- (the tracker checks the sizes: a table it cannot use is the camera file's fault)
   local ok, tracker = pcall(frames.tracker, opt, camera, sizes)
   if not ok then
     fail(camera_path .. ": "
       .. tostring(tracker):gsub("^bad argument #%d to 'new' %((.*)%)$", "%1"))
   end
-  local unit = opt.unit or opt.tag_size_unit or (opt.tag_size and "tag-size units")
-    or info.unit or "m"
+  local unit = opt.unit or given or (opt.tag_size and "tag-size units") or "m"
   return camera, { path = camera_path, info = info, unit = unit }, sizes, tracker
 end
 
@@ -123,14 +142,11 @@ local function open_outputs(opt, open)
   if opt.out then
     local werr
     out.writer, werr = log.pose_writer(opt.out == "-" and io.stdout or opt.out)
-    if not out.writer then fail(werr) end
+    if not out.writer then fail("the pose log (--out): " .. werr:gsub("^log: ", "")) end
     open[#open + 1] = out.writer
   end
   if opt.svg then
-    local serr
-    out.svg, serr = output.open(opt.svg)
-    if not out.svg then fail(serr) end
-    open[#open + 1] = out.svg
+    out.svg = command.command.output(open, opt.svg, "the plot (--svg)")
   end
   return out
 end
@@ -203,14 +219,18 @@ local function run(arg, open)
     say("wrote %s (%d rows)", opt.out == "-" and "the pose log to standard output" or opt.out,
       written)
   end
-  if files_out.recorder then summary.figure(say, replay, source.unit, files_out.svg) end
+  local why = summary.nothing_solved(replay)
+  if files_out.recorder then summary.figure(say, replay, source.unit, files_out.svg, why) end
+  -- a log of which no row gives a pose is a failure, whatever was written
+  if why then fail(why) end
   return 0
 end
 
 --- Run the command on its arguments (`arg` of the script).
 -- @tparam {string,...} argv the command-line arguments
--- @treturn int the exit status: 0 replayed, 1 a file could not be read or written (standard
---   output included), 2 a usage error (an output that is one of the inputs included)
+-- @treturn int the exit status: 0 replayed, 1 no row solved or a file could not be read or
+--   written (standard output included), 2 a usage error (an output that is one of the inputs
+--   included)
 function M.main(argv)
   return command.command.main(run, argv)
 end

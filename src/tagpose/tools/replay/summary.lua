@@ -88,7 +88,7 @@ function M.head(say, run, source)
     or "each row solved alone (no tracking; the tracker's tracks only tell tags apart)")
   local times = run.clock
   if times.has_time then
-    say("  time   the log's time column (s)%s", opt.fps_given and "; --fps not used" or "")
+    say("  time   the log's time column (s)%s", opt.given.fps and "; --fps not used" or "")
   else
     say("  time   frame / %s (frames per second, --fps; the log has no time column)",
       number(opt.fps))
@@ -230,16 +230,35 @@ function M.comparisons(say, run, unit)
   end
 end
 
+--- Why a replay gave no pose at all, or nil when a row was solved: no row read, or the
+-- reason most of the rows failed for.
+-- @tparam table run
+-- @treturn string|nil
+function M.nothing_solved(run)
+  if run.solved > 0 then return nil end
+  if run.rows == 0 then
+    return ("no pose: %s has no row to solve (%d malformed)"):format(run.opt.log,
+      run.malformed.n)
+  end
+  local failures, top = run.failures, nil
+  for _, reason in ipairs(failures.order) do
+    if not top or failures.counts[reason] > failures.counts[top] then top = reason end
+  end
+  return ("no pose: no row of %s was solved; %d of its %d rows failed with %s"):format(
+    run.opt.log, failures.counts[top] or failures.n, run.rows, top or "various reasons")
+end
+
 --- Draw the figure into `opt.svg` and say so.
 -- @tparam function say
 -- @tparam table run
 -- @tparam string unit the length unit
 -- @tparam table svg the plot's file, a `tagpose.formats.output` (committed here)
+-- @tparam[opt] string empty why nothing is drawn, said in every panel (`nothing_solved`)
 -- @raise an `EXIT` of `tagpose.tools.replay.command` when the file cannot be written
-function M.figure(say, run, unit, svg)
+function M.figure(say, run, unit, svg, empty)
   local opt, recorder = run.opt, run.recorder
   local title = opt.title or ("replay of " .. command.short_name(opt.log))
-  local text, shown = plot.draw(recorder, { title = title, length_unit = unit })
+  local text, shown = plot.draw(recorder, { title = title, length_unit = unit, empty = empty })
   svg:write(text)
   local ok, werr = svg:commit()
   if not ok then command.fail(werr) end
