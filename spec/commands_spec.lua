@@ -318,3 +318,24 @@ describe("values out of bounds", function()
       end
     end)
 end)
+
+describe("tagpose-replay with a tag size in another unit", function()
+  it("warns when the tags come out hundreds of metres from the camera", function()
+    local far = dir .. "/far"
+    os.execute("mkdir -p " .. run.quote(far))
+    run.write(far .. "/corners.csv", run.read(LOG))
+    -- millimetres in the camera file, read as metres
+    run.write(far .. "/camera.lua",
+      "return { fx = 313.9, fy = 313.9, cx = 159.5, cy = 119.5, tag_size = 24 }\n")
+    local text, status = run.script("bin/tagpose-replay", far .. "/corners.csv")
+    assert.equal(0, status, text)
+    assert.truthy(text:find("replay: warning: the tags are a median 357.7 m from the camera, with"
+      .. " a tag size of 24 m: is the tag size in another unit? (give it with its unit:"
+      .. " --tag-size 24mm)", 1, true), text)
+    -- in millimetres, or in units of their own, they are where they are
+    for _, size in ipairs({ "24mm", "24" }) do
+      text = run.script("bin/tagpose-replay", far .. "/corners.csv", "--tag-size", size)
+      assert.falsy(text:find("warning", 1, true), text)
+    end
+  end)
+end)

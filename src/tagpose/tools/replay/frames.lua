@@ -18,7 +18,8 @@
 --       tracker =, clock =,  -- the tracker, the frames' times (tagpose.tools.replay.clock)
 --       writer =, recorder =, main_source =, compares = {...},  -- where rows go
 --       rows = n, solved = n, failures = tally, malformed = tally,
---       errors = histogram, residuals = histogram, iterations = {[n] = count},
+--       errors = histogram, residuals = histogram, distances = histogram (the solved tags'
+--       distances from the camera), iterations = {[n] = count},
 --       tags = {[id] = true}, ntags = n, more_tags = boolean,  -- at most MAX_IDS ids
 --       first_frame =, last_frame =,
 --       repeated = {rows =, max =, tags =, ntags =, first =},  -- rows sharing (frame, tag)
@@ -81,7 +82,8 @@ function M.new(opt, camera, sizes, tracker, out, clock, smoothed)
     tracker = tracker, clock = clock, smoothed = smoothed, switched = 0, fed = 0,
     slots = out.recorder and slots_model.new(tracker.max_gap) or nil,
     rows = 0, solved = 0, failures = stats.tally(), malformed = stats.tally(),
-    errors = stats.histogram(), residuals = stats.histogram(), iterations = {}, tags = {},
+    errors = stats.histogram(), residuals = stats.histogram(), distances = stats.histogram(),
+    iterations = {}, tags = {},
     ntags = 0, more_tags = false, first_frame = nil, last_frame = nil,
     repeated = { rows = 0, max = 1, tags = {}, ntags = 0, first = nil },
     order = { rows = 0, first = nil }, options = { method = opt.method, sigma = opt.sigma,
@@ -193,6 +195,8 @@ local function count_solved(run, pose)
   local it = pose.iterations
   run.iterations[it] = (run.iterations[it] or 0) + 1
   add(run.residuals, 4 * pose.error * pose.error)
+  local p = pose.position
+  add(run.distances, math.sqrt(p.x * p.x + p.y * p.y + p.z * p.z))
 end
 
 -- the rows of a group in the log's order: to the pose log, the summary's counts, the figure;

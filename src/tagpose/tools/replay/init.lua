@@ -2,9 +2,12 @@
 -- write the poses, summarise, and draw the curves.
 --
 --   tagpose-replay LOG.csv [--camera FILE] [--tag-size S[UNIT]]
---     [--method refined|seed] [--track] [--smooth] [--max-gap T(s|ms)] [--sigma PX]
---     [--fps F] [--out POSES.csv|-] [--svg PLOT.svg] [--rpy] [--unit NAME] [--title TEXT]
---     [--compare OTHER.csv ...]
+--     [--order apriltag|opencv] [--method refined|seed] [--track] [--smooth]
+--     [--max-gap T(s|ms)] [--sigma PX] [--fps F] [--out POSES.csv|-] [--svg PLOT.svg]
+--     [--rpy] [--unit NAME] [--title TEXT] [--compare OTHER.csv ...]
+--
+-- (`--help` says each option with its default: the options are the table
+-- `tagpose.tools.replay.command.SPEC`, read by `tagpose.tools.command`.)
 --
 -- LOG.csv      a corner log (header frame,tag,u1,v1,u2,v2,u3,v3,u4,v4, optionally time in
 --              seconds; further columns ignored; blank lines and lines starting with #
@@ -14,7 +17,9 @@
 --              JSON, or a Kalibr camchain (its cam0); default: camera.lua beside LOG.csv
 -- --tag-size   the side of the tag's black square, optionally with its unit (0.024, 24mm);
 --              default: the camera file's tag_size (a number, or {[id] = size, default =
---              size}). Poses come out in its unit; the plot's axes name it (--unit overrides)
+--              size}). Poses come out in its unit, or in --unit's, the size converted to it;
+--              tags a median 100 m away or more are pointed out (a size in another unit)
+-- --order      apriltag (default) or opencv: the corners in OpenCV's and ArUco's order
 -- --method     refined (default) or seed (the report's method exactly)
 -- --track      the poses of tagpose.tracker, fed each frame's rows with the frame's time: the
 --              same poses as a user's own loop over the tracker
@@ -24,9 +29,9 @@
 --              track unseen longer ends; implies --track. A bare number (frames, before) is
 --              refused
 -- --sigma      the corner noise in px, for the covariance (default: the tracker's running
---              estimate per track; without --track, tagpose.solve's default)
+--              estimate per track; without --track, tagpose.solve's default); 1e-6 to 1e6
 -- --fps        frames per second of the frame column, for a log without a time column
---              (default 30)
+--              (default 30; 1e-6 to 1e6)
 -- --out        write the pose log (frame,tag,x,y,z,qw,qx,qy,qz,error,iterations, then
 --              confidence and the covariance's deviations): one row per readable input row,
 --              in input order; a row that failed keeps its frame and tag with empty pose
@@ -199,6 +204,8 @@ local function run(arg, open)
   local replay = frames.new(opt, camera, sizes, tracker, files_out, times, smoothed or nil)
   frames.read(replay, reader)
   log_file:close()
+  local far = summary.far(replay, source.unit)
+  if far then io.stderr:write("replay: warning: ", far, "\n") end
   for _, c in ipairs(files_out.compares) do c:finish() end
 
   -- the pose log first, so that a summary never claims a file that was not written

@@ -10,6 +10,7 @@
 local plot = require("tagpose.tools.plot")
 local stats = require("tagpose.tools.replay.stats")
 local command = require("tagpose.tools.replay.command")
+local frame = require("tagpose.tools.command")
 local frames = require("tagpose.tools.replay.frames")
 local compare = require("tagpose.tools.replay.compare")
 
@@ -228,6 +229,27 @@ function M.comparisons(say, run, unit)
         c.out_of_order, c.first_out_of_order)
     end
   end
+end
+
+--- Beyond this median distance from the camera (in metres) the tags are not where a tag
+-- detector sees tags: the tag size is in another unit than the one it is read in.
+M.FAR_METRES = 100
+
+--- A warning when the solved tags are a median `FAR_METRES` or more from the camera, once the
+-- length unit is one of `tagpose.tools.command.UNITS`: the tag size's unit is wrong (the
+-- camera file's `tag_size = 165.1`, millimetres, read as metres, puts the camera kilometres
+-- away).
+-- @tparam table run
+-- @tparam string unit the length unit
+-- @treturn string|nil
+function M.far(run, unit)
+  local metres = frame.UNITS[unit]
+  local median = quantile(run.distances, 0.5)
+  if not (metres and median and median * metres >= M.FAR_METRES) then return nil end
+  return ("the tags are a median %s m from the camera, with a tag size of %s %s: is the tag"
+    .. " size in another unit? (give it with its unit: --tag-size %s)"):format(
+    number(median * metres, 4), describe_sizes(run.sizes), unit,
+    type(run.sizes) == "number" and number(run.sizes) .. "mm" or "S[UNIT]")
 end
 
 --- Why a replay gave no pose at all, or nil when a row was solved: no row read, or the
