@@ -3,21 +3,30 @@
 --
 --   tagpose-calibrate LOG.csv (--layout NOMINAL | --cube TAG_SIZE,BLOCK_SIZE)
 --     [--camera CAMERA] [--out CALIBRATED.lua|.yaml|.csv] [--bundle NAME] [--unit NAME]
---     [--reference ID] [--gauge planes|corners] [--robust K] [--max-iterations N]
+--     [--order apriltag|opencv] [--reference ID] [--gauge planes|corners] [--robust K]
+--     [--max-iterations N]
+--
+-- (`--help` says each option with its default: the options are the table `SPEC`, read by
+-- `tagpose.tools.command`.)
 --
 -- LOG.csv      a corner log (frame,tag,u1,v1,...,u4,v4; rows of one frame are one image)
 -- --layout     the nominal layout: a Lua layout file (.lua, read as data), an apriltag_ros
 --              tags.yaml (.yaml, .yml; --bundle names the bundle when it has several) or a CSV
 --              table id,size,x,y,z,qw,qx,qy,qz (.csv)
 -- --cube       instead: a cube of side BLOCK_SIZE with tags 0-5 of side TAG_SIZE centred on
---              its faces +x, -x, +y, -y, +z, -z (tagpose.layout.cube)
+--              its faces +x, -x, +y, -y, +z, -z (tagpose.layout.cube); each size with an
+--              optional unit (22.9mm,54.8mm); sizes without one that read as metres a tag
+--              more than 1 m wide are refused (millimetres without their unit)
 -- --camera     a camera file (tagpose.calibration): a Lua camera file, ROS camera_calibration
 --              or CameraInfo YAML, OpenCV FileStorage YAML, XML or JSON, or a Kalibr camchain
 --              (its cam0); default camera.lua beside LOG.csv
 -- --out        write the calibrated layout, in the format its extension names
--- --unit       the unit of the layout's lengths (default m): corrections are printed in mm
---              for m, cm and mm, else in the unit
+-- --unit       the unit of the layout's lengths (default --cube's unit, else m; a --cube in
+--              another unit converted to it): corrections are printed in mm for m, cm and
+--              mm, else in the unit
+-- --order      opencv: the log's corners in OpenCV's and ArUco's order (top-left first)
 -- --reference, --gauge, --robust, --max-iterations: tagpose.layout.calibrate's options
+--              (--reference a tag of the layout, --robust at least 1)
 --
 -- --out may not be an input (the log, the camera file, the nominal layout) under any name
 -- (`tagpose.tools.files`); it is checked and opened before the log is read, and written whole

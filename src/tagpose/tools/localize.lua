@@ -2,8 +2,8 @@
 -- `tagpose.localizer` and write where the robot was at every camera frame.
 --
 --   tagpose-localize CORNERS.csv --map MAP --cameras CAMERAS.lua [--odometry ODOMETRY.csv]
---     [--gyro GYRO.csv] [--single] [--tag-size S] [--map-check CHECK.csv] [--svg PLOT.svg]
---     --out POSES.csv
+--     [--gyro GYRO.csv] [--single] [--tag-size S[UNIT]] [--map-check CHECK.csv]
+--     [--svg PLOT.svg] --out POSES.csv
 --
 -- CORNERS.csv  time,camera,tag,u1,v1,u2,v2,u3,v3,u4,v4 (rows of one time and camera are one
 --              frame; corners in the detector's order, pixels; times in seconds)
