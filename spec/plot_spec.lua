@@ -374,6 +374,28 @@ describe("tagpose.tools.plot", function()
       assert.equal(0, rec.dropped)
     end)
 
+    it("says in every empty panel why it is empty (options.empty)", function()
+      local rec = plot.recorder()
+      rec:source("none")
+      local why = "no pose: no row of corners.csv was solved; 377 of its 377 rows failed with"
+        .. " square: corners wind the wrong way round (--order opencv)"
+      local svg = plot.draw(rec, { empty = why })
+      assert_xml(svg)
+      assert.equal(0, run.count(svg, ">no data<"))
+      -- in lines that fit the panel, every word of it
+      local words = {}
+      for text in svg:gmatch('<text class="no%-data".-</text>') do
+        local said = {}
+        for line in text:gmatch("<tspan[^>]*>(.-)</tspan>") do said[#said + 1] = line end
+        assert.is_true(#said >= 2, text)
+        words[#words + 1] = table.concat(said, " ")
+      end
+      assert.equal(7, #words)
+      for _, w in ipairs(words) do assert.equal(why, w) end
+      assert.has_error(function() plot.draw(rec, { empty = 1 }) end,
+        "bad argument #2 to 'draw' (options.empty: string expected, got number 1)")
+    end)
+
     it("keeps at most MAX_SERIES series, counting the points it leaves out", function()
       local rec = plot.recorder()
       local src = rec:source("ids")
