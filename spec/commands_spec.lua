@@ -191,7 +191,14 @@ describe("--order opencv", function()
     os.execute("mkdir -p " .. run.quote(cube_flipped))
     reversed(CUBE .. "/corners.csv", cube_flipped .. "/corners.csv")
     run.write(cube_flipped .. "/camera.lua", run.read(CUBE .. "/camera.lua"))
+    -- without --order: the failure says which option reads them
     local text, status = run.script("bin/tagpose-calibrate", cube_flipped .. "/corners.csv",
+      "--cube", "0.0229,0.0548")
+    assert.equal(1, status, text)
+    assert.truthy(text:find("; 50 of 50 detections solved alone fail with square: corners wind"
+      .. " the wrong way round", 1, true), text)
+    assert.truthy(text:find("--order opencv)", 1, true), text)
+    text, status = run.script("bin/tagpose-calibrate", cube_flipped .. "/corners.csv",
       "--cube", "0.0229,0.0548", "--order", "opencv")
     assert.equal(0, status, text)
     local plain = run.script("bin/tagpose-calibrate", CUBE .. "/corners.csv", "--cube",

@@ -178,6 +178,29 @@ local function read_frames(path, file, opencv)
   return frames, nrows, problems
 end
 
+-- When a calibration failed: what the first detections of the layout's tags say solved
+-- alone, when most of them fail for one reason (corners in the other order: the solve's hint
+-- names the option), as `; N of M detections solved alone fail with REASON`; else "".
+local function unsolved(frames, camera, nominal)
+  local counts, tried, top = {}, 0, nil
+  for _, f in ipairs(frames) do
+    for _, d in ipairs(f) do
+      local tag = nominal.tags[d.id]
+      if tag and tried < 50 then
+        tried = tried + 1
+        local ok, pose, why = pcall(tagpose.solve, d.corners, camera, tag.size)
+        why = ok and not pose and why or nil
+        if why then
+          counts[why] = (counts[why] or 0) + 1
+          if not top or counts[why] > counts[top] then top = why end
+        end
+      end
+    end
+  end
+  if not top or 2 * counts[top] <= tried then return "" end
+  return ("; %d of %d detections solved alone fail with %s"):format(counts[top], tried, top)
+end
+
 -- The per-tag lines of a report.
 local function tag_lines(say, report, scale, unit)
   local ids = {}
@@ -243,7 +266,10 @@ local function run(argv, open)
   local frames, nrows, problems = read_frames(opt.log, log_file, opt.order == "opencv")
   local ok, layout, report = pcall(tagpose.layout.calibrate, frames, camera, nominal, options)
   if not ok then fail(tostring(layout)) end
-  if not layout then fail((report:gsub("options%.order = 'opencv'", "--order opencv"))) end
+  if not layout then
+    fail((report .. unsolved(frames, camera, nominal)):gsub("options%.order = 'opencv'",
+      "--order opencv"))
+  end
   local unit = opt.unit
   local scale, shown = MM[unit] or 1, MM[unit] and "mm" or unit
   say("calibrate %s: %d rows in %d frames%s", opt.log, nrows, #frames,
