@@ -74,8 +74,8 @@ local SPEC = {
       help = "instead of --layout: a cube of side BLOCK_SIZE with tags 0-5 of side TAG_SIZE"
         .. " centred on its faces +x, -x, +y, -y, +z, -z (22.9mm,54.8mm)" },
     { name = "--camera", kind = "string", meta = "CAMERA", default_text = "camera.lua beside"
-      .. " LOG.csv", help = "the camera file (Lua, ROS or CameraInfo YAML, OpenCV FileStorage,"
-      .. " Kalibr)" },
+      .. " LOG.csv", help = "the camera file: a Lua camera file, ROS or CameraInfo YAML, OpenCV"
+      .. " FileStorage YAML, XML or JSON, a Kalibr camchain (its cam0)" },
     { name = "--out", kind = "string", meta = "CALIBRATED", help = "write the calibrated"
       .. " layout, in the format its extension names (.lua, .yaml, .csv)" },
     { name = "--bundle", kind = "string", meta = "NAME", help = "the bundle of a tags.yaml that"

@@ -39,7 +39,7 @@ M.SPEC = {
   options = {
     { name = "--camera", kind = "string", meta = "FILE", default_text = "camera.lua beside"
       .. " LOG.csv", help = "the camera: a Lua camera file, ROS or CameraInfo YAML, OpenCV"
-      .. " FileStorage YAML or XML, Kalibr camchain YAML" },
+      .. " FileStorage YAML, XML or JSON, a Kalibr camchain (its cam0)" },
     { name = "--tag-size", kind = "size", meta = "S[UNIT]", default_text = "the camera file's"
       .. " tag_size", help = "the side of the tag's black square, with an optional unit (m,"
       .. " cm, mm, in, ft: 0.024m, 24mm); the poses come out in its unit" },
