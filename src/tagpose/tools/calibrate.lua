@@ -267,8 +267,7 @@ local function run(argv, open)
   local ok, layout, report = pcall(tagpose.layout.calibrate, frames, camera, nominal, options)
   if not ok then fail(tostring(layout)) end
   if not layout then
-    fail((report .. unsolved(frames, camera, nominal)):gsub("options%.order = 'opencv'",
-      "--order opencv"))
+    fail(frame.order_hint(report .. unsolved(frames, camera, nominal)))
   end
   local unit = opt.unit
   local scale, shown = MM[unit] or 1, MM[unit] and "mm" or unit

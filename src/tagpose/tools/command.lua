@@ -64,10 +64,18 @@ local function arguments(C, argv)
   return A
 end
 
+--- A library message with its corner-order hint in the commands' words: the option of the
+-- call (`options.order = 'opencv'`, `{order = 'opencv'} in tagpose.tracker.new(...)`) becomes
+-- `--order opencv`.
+-- @tparam string text
+-- @treturn string
+function M.order_hint(text)
+  return (text:gsub("options%.order = 'opencv'", "--order opencv")
+    :gsub("{order = 'opencv'} in [%w_.:]+%b()", "--order opencv"))
+end
+
 --- Length units a size may carry, in metres.
 M.UNITS = { m = 1, cm = 0.01, mm = 0.001, ["in"] = 0.0254, ft = 0.3048 }
-
-local UNITS = M.UNITS
 
 --- Sizes are numbers within these bounds (in their unit), as the library takes them.
 M.MIN_SIZE, M.MAX_SIZE = 1e-12, 1e12
@@ -81,7 +89,7 @@ function M.size(text)
   local x = compat.decimal(num or "")
   if not (x and x >= M.MIN_SIZE and x <= M.MAX_SIZE) then return nil end
   if unit == "" then return x, nil end
-  if not UNITS[unit] then return nil end
+  if not M.UNITS[unit] then return nil end
   return x, unit
 end
 
@@ -92,7 +100,7 @@ end
 -- @treturn number
 function M.convert(x, from, to)
   if from == to then return x end
-  return x * UNITS[from] / UNITS[to]
+  return x * M.UNITS[from] / M.UNITS[to]
 end
 
 local UNIT_NAMES = "m, cm, mm, in, ft"
@@ -138,9 +146,7 @@ M.KINDS = {}
 
 local KINDS = M.KINDS
 
-function KINDS.string(_, v)
-  return v
-end
+function KINDS.string(_, v) return v end
 
 function KINDS.choice(o, v, bad)
   for _, c in ipairs(o.choices) do
@@ -266,7 +272,8 @@ end
 -- @tparam[opt] table spec `{about =, arguments = {{name =, key =, help =}}, options = {...}}`
 --   (see the module's header): what `parse` reads and `help` prints
 -- @treturn table `{name =, USAGE =, usage(msg), refuse(msg), fail(msg), help(), version(),
---   parse(argv), args(argv), inputs(opt, missing), main(run, argv)}` (functions, not methods)
+--   parse(argv), inputs(opt, missing), output(open, path, what), main(run, argv)}`
+--   (functions, not methods)
 function M.new(name, usage, spec)
   local C = { name = name, USAGE = usage }
 
@@ -346,7 +353,7 @@ function M.new(name, usage, spec)
   function C.parse(argv)
     local opt = { given = {} }
     local positional = spec.arguments[1]
-    local args = C.args(argv)
+    local args = arguments(C, argv)
     local function more()
       local w = args.peek()
       if w and w:sub(1, 2) ~= "--" then return args.next() end
@@ -373,13 +380,6 @@ function M.new(name, usage, spec)
       end
     end
     return opt
-  end
-
-  --- The arguments, read one at a time (`arguments`).
-  -- @tparam {string,...} argv
-  -- @treturn table
-  function C.args(argv)
-    return arguments(C, argv)
   end
 
   --- The corner log, opened, and the camera file's path, in this order: a log that cannot be

@@ -40,6 +40,7 @@ local plot = require("tagpose.tools.plot")
 local stats = require("tagpose.tools.replay.stats")
 local clock_model = require("tagpose.tools.replay.clock")
 local slots_model = require("tagpose.tools.replay.slots")
+local command = require("tagpose.tools.command")
 
 local add, note = stats.add, stats.note
 local LN4 = 2 * math.log(2) -- the median of χ² with 2 degrees of freedom
@@ -171,8 +172,7 @@ local function solve_group(run, group, time)
     if tracking then pose, reason = e.pose, e.reason else pose, reason = solve_row(run, row) end
     if reason then
       -- the command's option where the library names its own
-      reason = reason:gsub("^tracker: entry %d+: ", "tracker: ")
-        :gsub("options%.order = 'opencv'", "--order opencv")
+      reason = command.order_hint((reason:gsub("^tracker: entry %d+: ", "tracker: ")))
     end
     row.pose, row.reason = pose, reason or (not pose and "no pose") or nil
     if pose and smoothed then
