@@ -126,7 +126,8 @@ local function parse(argv)
     if bare then usage(bare .. ", or --unit") end
   end
   opt.unit = opt.unit or "m"
-  local options = { reference = opt.reference, gauge = opt.given.gauge and opt.gauge or nil,
+  local options = { reference = opt.reference, order = opt.order,
+    gauge = opt.given.gauge and opt.gauge or nil,
     robust = opt.given.robust and opt.robust or nil,
     max_iterations = opt.given.max_iterations and opt.max_iterations or nil }
   return opt, options
@@ -146,10 +147,9 @@ end
 
 -- The corner log (`file`, opened from `path`, closed here) read into frames of detections
 -- `{id =, corners =}` (rows of one frame number, in the order the numbers first come), keeping
--- nothing else of a row (the corners in the detector's order, reversed from OpenCV's when
--- `opencv`); the number of rows, and the malformed rows (the first 10 kept, with
+-- nothing else of a row; the number of rows, and the malformed rows (the first 10 kept, with
 -- their count).
-local function read_frames(path, file, opencv)
+local function read_frames(path, file)
   local reader, err = log.corner_reader(file)
   if not reader then fail(err:find(path, 1, true) and err or path .. ": " .. err) end
   local frames, index, nrows, problems = {}, {}, 0, { n = 0 }
@@ -164,10 +164,8 @@ local function read_frames(path, file, opencv)
         index[det.frame] = k
         frames[k] = {}
       end
-      local f, c = frames[k], det.corners
-      -- OpenCV's order (c4, c3, c2, c1) into the detector's, as options.order does for a solve
-      if opencv then c = { c[4], c[3], c[2], c[1] } end
-      f[#f + 1] = { id = det.tag, corners = c }
+      local f = frames[k]
+      f[#f + 1] = { id = det.tag, corners = det.corners }
     else
       problems.n = problems.n + 1
       if #problems < 10 then problems[#problems + 1] = { line = line, reason = reason } end
@@ -176,29 +174,6 @@ local function read_frames(path, file, opencv)
   reader:close()
   file:close()
   return frames, nrows, problems
-end
-
--- When a calibration failed: what the first detections of the layout's tags say solved
--- alone, when most of them fail for one reason (corners in the other order: the solve's hint
--- names the option), as `; N of M detections solved alone fail with REASON`; else "".
-local function unsolved(frames, camera, nominal)
-  local counts, tried, top = {}, 0, nil
-  for _, f in ipairs(frames) do
-    for _, d in ipairs(f) do
-      local tag = nominal.tags[d.id]
-      if tag and tried < 50 then
-        tried = tried + 1
-        local ok, pose, why = pcall(tagpose.solve, d.corners, camera, tag.size)
-        why = ok and not pose and why or nil
-        if why then
-          counts[why] = (counts[why] or 0) + 1
-          if not top or counts[why] > counts[top] then top = why end
-        end
-      end
-    end
-  end
-  if not top or 2 * counts[top] <= tried then return "" end
-  return ("; %d of %d detections solved alone fail with %s"):format(counts[top], tried, top)
 end
 
 -- The per-tag lines of a report.
@@ -263,11 +238,11 @@ local function run(argv, open)
       id_text(options.reference), id_text(options.reference), table.concat(ids, ", ", 1,
       math.min(#ids, 20)) .. (#ids > 20 and ", ..." or "")))
   end
-  local frames, nrows, problems = read_frames(opt.log, log_file, opt.order == "opencv")
+  local frames, nrows, problems = read_frames(opt.log, log_file)
   local ok, layout, report = pcall(tagpose.layout.calibrate, frames, camera, nominal, options)
   if not ok then fail(tostring(layout)) end
   if not layout then
-    fail(frame.order_hint(report .. unsolved(frames, camera, nominal)))
+    fail(frame.order_hint(report))
   end
   local unit = opt.unit
   local scale, shown = MM[unit] or 1, MM[unit] and "mm" or unit
