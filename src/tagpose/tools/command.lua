@@ -77,8 +77,10 @@ end
 --- Length units a size may carry, in metres.
 M.UNITS = { m = 1, cm = 0.01, mm = 0.001, ["in"] = 0.0254, ft = 0.3048 }
 
---- Sizes are numbers within these bounds (in their unit), as the library takes them.
-M.MIN_SIZE, M.MAX_SIZE = 1e-12, 1e12
+--- Sizes are numbers from this...
+M.MIN_SIZE = 1e-12
+--- ... to this (in their unit), as the library takes them.
+M.MAX_SIZE = 1e12
 
 --- A size with its optional unit: `"24mm"` gives 24, `"mm"`; `"0.024"` gives 0.024, nil.
 -- @tparam string text
