@@ -49,6 +49,7 @@ build = {
     ["tagpose.tools.replay.slots"] = "src/tagpose/tools/replay/slots.lua",
     ["tagpose.tools.replay.stats"] = "src/tagpose/tools/replay/stats.lua",
     ["tagpose.tools.replay.summary"] = "src/tagpose/tools/replay/summary.lua",
+    ["tagpose.tools.tag_id"] = "src/tagpose/tools/tag_id.lua",
   },
   install = {
     bin = {

@@ -53,10 +53,8 @@ local TOOL_EXCEPTIONS = {
   -- the one output writer: whole or not at all, devices written through; layout.write and the
   -- camera writers write with it too
   ["tagpose.formats.output"] = "the one output writer the library's writers use too",
-  -- to be replaced by public fields
-  ["tagpose.formats.layout"] = "calibrate encodes the layout before it writes it",
-  ["tagpose.formats.luadata"] = "localize reads its cameras file",
-  ["tagpose.layout.model"] = "what a tag id is",
+  -- the safe reader of Lua data (nothing in it runs), for tagpose-localize's cameras file
+  ["tagpose.formats.luadata"] = "the one reader of Lua data files",
 }
 
 local function lua_files(dir, out)
