@@ -34,9 +34,9 @@ local EXCEPTIONS = {
   ["tagpose.core.result -> tagpose.uncertainty"] = "made-on-read fields of the pose table",
   ["tagpose.core.result -> tagpose.uncertainty.read"] = "made-on-read fields of the pose table",
   ["tagpose.core.result -> tagpose.track"] = "a solve with a prior chooses by the filter",
-  -- `tagpose.layout` is both the public field (whose read and write take files) and the
+  -- `tagpose.layout` is both the public field (whose read, write and encode take files) and the
   -- rigid-body model's folder that the formats build on, until the model has its own folder.
-  ["tagpose.layout -> tagpose.formats.layout"] = "layout.read and layout.write read files",
+  ["tagpose.layout -> tagpose.formats.layout"] = "layout.read, .write and .encode: files",
   -- The localizer solves each detection through the public solve, its checks and its corner
   -- order: a cycle tagpose -> tagpose.localizer -> tagpose.localizer.engine -> tagpose, closed
   -- only at run time (each side requires the other inside a function).
@@ -44,7 +44,9 @@ local EXCEPTIONS = {
 }
 
 -- What the tools may require besides the facade and their own modules: the facilities the tools
--- share with the library that are not public fields (a module name, and why).
+-- share with the library that are not public fields (a module name, and why). Each is the one
+-- place of its kind, which a copy under tools/ would make two; the tools rock depends on
+-- exactly its own version of the library (spec/rockspec_spec.lua), so they cannot drift apart.
 local TOOL_EXCEPTIONS = {
   -- the one place that knows which Lua it runs on (decimal numerals read alike on every VM)
   ["tagpose.core.compat"] = "the one compat module: numbers read and printed alike on every VM",
