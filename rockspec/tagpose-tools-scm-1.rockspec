@@ -14,9 +14,12 @@ description = {
   license = "MIT",
   labels = { "apriltag", "pose", "robotics", "vision" },
 }
+-- The tools are built with the library of the same commit and tested with it only: each
+-- release of the tools depends on exactly the same version of the library (`tagpose == 0.4.0`
+-- in tagpose-tools-0.4.0-1), as this one on the library's scm rock (spec/rockspec_spec.lua).
 dependencies = {
   "lua >= 5.1",
-  "tagpose",
+  "tagpose == scm",
 }
 test_dependencies = {
   "busted",
@@ -46,6 +49,7 @@ build = {
     ["tagpose.tools.replay.slots"] = "src/tagpose/tools/replay/slots.lua",
     ["tagpose.tools.replay.stats"] = "src/tagpose/tools/replay/stats.lua",
     ["tagpose.tools.replay.summary"] = "src/tagpose/tools/replay/summary.lua",
+    ["tagpose.tools.tag_id"] = "src/tagpose/tools/tag_id.lua",
   },
   install = {
     bin = {

@@ -195,6 +195,33 @@ describe("tagpose.layout", function()
     end)
   end)
 
+  describe("encode()", function()
+    it("gives the text write() writes, in each format, and writes nothing", function()
+      local cube = tagpose.layout.cube(0.024, 0.03)
+      cube.name = "cube"
+      for _, ext in ipairs({ "lua", "yaml", "yml", "csv" }) do
+        local path = dir .. "/encoded." .. ext
+        local text = assert(tagpose.layout.encode(path, cube))
+        assert.is_nil(io.open(path, "rb"))
+        assert(tagpose.layout.write(path, cube))
+        local f = assert(io.open(path, "rb"))
+        assert.equal(f:read("*a"), text)
+        f:close()
+      end
+    end)
+
+    it("refuses what write() refuses, before any file", function()
+      local none, why = tagpose.layout.encode(dir .. "/x.txt", { tags = {} })
+      assert.is_nil(none)
+      assert.equal("layout: " .. dir .. "/x.txt: .lua, .yaml, .yml or .csv expected", why)
+      local name = "layout_io_spec.lua"
+      assert.equal("bad argument #1 to 'encode' (string expected, got nil)",
+        assertions.raised(function() tagpose.layout.encode(nil, { tags = {} }) end, name))
+      assert.matches("^bad argument #2 to 'encode' %(layout.tags",
+        assertions.raised(function() tagpose.layout.encode(dir .. "/x.lua", {}) end, name))
+    end)
+  end)
+
   describe("cube()", function()
     it("places the tags as tagpose.block's faces do", function()
       local faces = require("support.faces").FACES

@@ -49,7 +49,7 @@ describe("rockspec", function()
         local spec = load_rockspec(path)
         assert.equal("3.0", spec.rockspec_format)
         assert.equal("tagpose-tools", spec.package)
-        assert.same({ "lua >= 5.1", "tagpose" }, spec.dependencies)
+        assert.same({ "lua >= 5.1", "tagpose == scm" }, spec.dependencies)
         assert.same(tools, spec.build.modules)
         assert.same(commands, spec.build.install.bin)
       end)
@@ -74,6 +74,29 @@ describe("rockspec", function()
         assert.equal(name:match("^(tagpose[%a%-]-)%-%d"), spec.package)
         assert.equal("v" .. version, spec.source.tag)
         assert.equal("builtin", spec.build.type)
+      end)
+    end
+  end
+
+  -- The tools are tested with the library of the same commit only, so a release of the tools
+  -- depends on exactly the same version of the library. The releases up to 0.3.0 are as they
+  -- were published (0.2.0: any tagpose; 0.3.0: >= 0.3.0, < 0.4): a published rockspec is not
+  -- edited.
+  local PINNED_SINCE = { 0, 4, 0 }
+  local function pinned_from(v)
+    for i = 1, 3 do
+      if v[i] ~= PINNED_SINCE[i] then return v[i] > PINNED_SINCE[i] end
+    end
+    return true
+  end
+  for name in lfs.dir("rockspec") do
+    local version = name:match("^tagpose%-tools%-(%d+%.%d+%.%d+)%-%d+%.rockspec$")
+    local v = {}
+    for n in (version or ""):gmatch("%d+") do v[#v + 1] = tonumber(n) end
+    if version and pinned_from(v) then
+      it("rockspec/" .. name .. " depends on tagpose == " .. version .. " exactly", function()
+        local spec = load_rockspec("rockspec/" .. name)
+        assert.same({ "lua >= 5.1", "tagpose == " .. version }, spec.dependencies)
       end)
     end
   end

@@ -245,6 +245,24 @@ function M.write(path, layout)
   return lazy("tagpose.formats.layout").write(path, tags, layout.name)
 end
 
+--- The text `write` would write to `path`, in the format its extension names, and nothing
+-- written: for a caller that writes it itself (onto an output it opened before the work that
+-- makes the layout, as `tagpose-calibrate` does), or checks a path's format first.
+-- @tparam string path its extension names the format, as in `write`
+-- @tparam table layout
+-- @treturn string the file's text
+-- @return nil, string when the extension is not a layout format's, or the layout's name cannot
+--   be written in it
+-- @raise `bad argument #n to 'encode'` for a path that is not a string or a bad layout
+-- @usage
+-- local text = assert(tagpose.layout.encode("cube.yaml", tagpose.layout.cube(0.024, 0.03)))
+function M.encode(path, layout)
+  if type(path) ~= "string" then raise(1, "encode", "string expected, got " .. type(path)) end
+  local tags, why = model.read(layout)
+  if not tags then raise(2, "encode", why) end
+  return lazy("tagpose.formats.layout").encode(path, tags, layout.name)
+end
+
 -- The tag frame on each face of the standard cube, `[tag_x tag_y tag_z]` (columns) in the
 -- block frame, flat row-major: tag z into the block; on the side faces tag y = -z (the tag
 -- upright on an upright block), tag x = tag y × tag z; on the top tag x = +x, tag y = -y; on

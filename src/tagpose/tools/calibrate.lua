@@ -37,14 +37,13 @@
 -- @module tagpose.tools.calibrate
 
 local tagpose = require("tagpose")
-local io_layout = require("tagpose.formats.layout")
-local model = require("tagpose.layout.model")
+local tag_id = require("tagpose.tools.tag_id")
 local log = require("tagpose.tools.log")
 local files = require("tagpose.tools.files")
 local frame = require("tagpose.tools.command")
 
 local deg, abs = math.deg, math.abs
-local id_text = io_layout.id_text
+local id_text = tag_id.text
 
 local M = {}
 
@@ -87,7 +86,7 @@ local SPEC = {
       default = "apriltag", help = "the corners' order: apriltag (the detector's c1..c4) or"
         .. " opencv (OpenCV's and ArUco's: top-left, top-right, bottom-right, bottom-left)" },
     { name = "--reference", kind = "integer", meta = "ID", min = -2 ^ 53 + 1, max = 2 ^ 53 - 1,
-      what = "tag id (" .. model.ID .. ")", default_text = "the tag seen most",
+      what = "tag id (" .. tag_id.ID .. ")", default_text = "the tag seen most",
       help = "the tag held fixed, one of the layout's" },
     { name = "--gauge", kind = "choice", meta = "planes|corners", choices = { "planes",
       "corners" }, default = "planes", help = "how the result is moved onto the nominal"
@@ -203,7 +202,7 @@ local function open_output(opt, camera_path, open)
     { name = "the nominal layout", path = opt.layout } },
     { { name = "the calibrated layout (--out)", path = opt.out } })
   if clash then refuse(clash) end
-  local _, why = io_layout.encode(opt.out, { ids = {} })
+  local _, why = tagpose.layout.encode(opt.out, { tags = {} })
   if why then usage("--out: " .. why:gsub("^layout: ", "")) end
   return cmd.output(open, opt.out, "the calibrated layout (--out)")
 end
@@ -264,7 +263,7 @@ local function run(argv, open)
     report.reference and scale * report.alignment or 0, shown, report.iterations, report.stages,
     report.converged and "" or " (stopped at --max-iterations)")
   if out_file then
-    local text, why = io_layout.encode(opt.out, assert(model.read(layout)), layout.name)
+    local text, why = tagpose.layout.encode(opt.out, layout)
     if not text then fail(why) end
     out_file:write(text)
     local committed, werr = out_file:commit()

@@ -34,7 +34,7 @@ local compat = require("tagpose.core.compat")
 local tagpose = require("tagpose")
 local csv_table = require("tagpose.tools.csv")
 local output = require("tagpose.formats.output")
-local model = require("tagpose.layout.model")
+local tag_id = require("tagpose.tools.tag_id")
 
 local decimal = compat.decimal
 local concat = table.concat
@@ -111,8 +111,8 @@ local function key_field(fields, i, name, n)
   if type(n) ~= "number" then n = nil end
   if n == nil then return nil, "column " .. name .. " is not a number" end
   if not is_finite(n) then return nil, "column " .. name .. " is not finite (" .. v .. ")" end
-  if name == "tag" and not model.is_id(n) then
-    return nil, "column tag is not a tag id (" .. v .. " is not " .. model.ID .. ")"
+  if name == "tag" and not tag_id.is(n) then
+    return nil, "column tag is not a tag id (" .. v .. " is not " .. tag_id.ID .. ")"
   end
   return n
 end
