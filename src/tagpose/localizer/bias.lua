@@ -45,15 +45,16 @@ end
 -- @tparam ?table b the sums (`s.bias`)
 -- @tparam int cameras
 -- @tparam {number,...} ids
--- @treturn number c11, c12, c22 (m²)
+-- @treturn number c11, c12, c22 (m²), then c13, c23 (m·rad), c33 (rad²) of the heading
 function M.covariance(b, cameras, ids)
-  if not b or not (b.w > 0) then return 0, 0, 0 end
+  if not b or not (b.w > 0) then return 0, 0, 0, 0, 0, 0 end
   local iw = 1 / b.w
-  local b11, b12, b22 = 0, 0, 0
+  local b11, b12, b22, b13, b23, b33 = 0, 0, 0, 0, 0, 0
   local function add(S, cols)
     for c = 1, cols do
-      local x, y = S[c] * iw, S[cols + c] * iw
+      local x, y, h = S[c] * iw, S[cols + c] * iw, S[2 * cols + c] * iw
       b11, b12, b22 = b11 + x * x, b12 + x * y, b22 + y * y
+      b13, b23, b33 = b13 + x * h, b23 + y * h, b33 + h * h
     end
   end
   for c = 1, cameras do
@@ -63,7 +64,7 @@ function M.covariance(b, cameras, ids)
     local S = b.tags[ids[i]]
     if S then add(S, 3) end
   end
-  return b11, b12, b22
+  return b11, b12, b22, b13, b23, b33
 end
 
 return M

@@ -194,10 +194,13 @@ local function estimate(self, t, name, g, r, used, rejected)
   local f = s.filter
   local yaw = g - f.c
   local dx, dy = ahead(s, t, yaw)
-  local P, NS = f.P, f.n
+  -- (the frames' own noise through the filter's gains, and the mounts' and map's bias)
+  local P, NS = f.Pw, f.n
   local cov = {}
   for i = 1, 36 do cov[i] = 0 end
   local function set(i, j, v) cov[(i - 1) * 6 + j], cov[(j - 1) * 6 + i] = v, v end
+  -- (the heading's share of the mounts' errors is the filter's: each camera's heading error is
+  -- a state of it)
   local b11, b12, b22 = bias.covariance(s.bias, self.ncameras, self.tags.ids)
   local h1, h2, h3 = f:heading_cov()
   set(1, 1, P[1] + b11); set(1, 2, P[2] + b12); set(2, 2, P[NS + 2] + b22)
@@ -323,8 +326,10 @@ local function process_frame(self, name, detections, t, moved)
     local yaw = fit.yaw(sol.pose.r)
     local dx, dy = ahead(s, t, yaw)
     local P = { C[1], C[2], -C[6], C[7], C[8], -C[12], -C[31], -C[32], C[36] }
+    local W = sol.noise
+    local Pw = { W[1], W[2], -W[6], W[7], W[8], -W[12], -W[31], -W[32], W[36] }
     f = filter.new(sol.pose.t[1] - dx, sol.pose.t[2] - dy, g - yaw, P, self.ncameras,
-      o.mount_angle_sigma)
+      o.mount_angle_sigma, Pw)
     s.filter = f
     s.last_time = s.odo and s.odo[1] or t
   end
@@ -335,8 +340,10 @@ local function process_frame(self, name, detections, t, moved)
     local C = sol.covariance
     -- (the heading is compared with the gyro's: its noise adds to the frame's)
     local R = { C[1], C[2], C[6], C[7], C[8], C[12], C[31], C[32], C[36] + o.gyro_sigma ^ 2 }
+    local W = sol.noise
+    local Rw = { W[1], W[2], W[6], W[7], W[8], W[12], W[31], W[32], W[36] + o.gyro_sigma ^ 2 }
     accepted = f:update(cam.index, sol.pose.t[1], sol.pose.t[2], fit.yaw(sol.pose.r), R, g, dx,
-      dy, sol.kept >= 2)
+      dy, sol.kept >= 2, Rw)
     if accepted then
       -- the mounts' and the map's share of the estimate (a bias the filter cannot average
       -- away): the frames' sensitivities to each error averaged as the frames weigh in the

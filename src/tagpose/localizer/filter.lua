@@ -51,30 +51,31 @@ Filter.__index = Filter
 -- @tparam int cameras how many cameras (each a heading error, 0 with `camera_sigma`)
 -- @tparam number camera_sigma σ of a camera's heading error (radians)
 -- @treturn table
-function M.new(x, y, c, P3, cameras, camera_sigma)
+function M.new(x, y, c, P3, cameras, camera_sigma, W3)
   local NS = 4 + cameras
-  local P = {}
-  for i = 1, NS * NS do P[i] = 0 end
-  for i = 1, 3 do
-    for j = 1, 3 do P[(i - 1) * NS + j] = P3[(i - 1) * 3 + j] end
+  local function start(S3)
+    local P = {}
+    for i = 1, NS * NS do P[i] = 0 end
+    for i = 1, 3 do
+      for j = 1, 3 do P[(i - 1) * NS + j] = S3[(i - 1) * 3 + j] end
+    end
+    P[3 * NS + 4] = M.SCALE_SIGMA * M.SCALE_SIGMA
+    for i = 1, cameras do P[(3 + i) * NS + 4 + i] = camera_sigma * camera_sigma end
+    return P
   end
-  P[3 * NS + 4] = M.SCALE_SIGMA * M.SCALE_SIGMA
   local beta = {}
-  for i = 1, cameras do
-    P[(3 + i) * NS + 4 + i] = camera_sigma * camera_sigma
-    beta[i] = 0
-  end
-  return setmetatable({ x = x, y = y, c = c, k = 0, beta = beta, P = P, n = NS,
-    rejected = 0 }, Filter)
+  for i = 1, cameras do beta[i] = 0 end
+  return setmetatable({ x = x, y = y, c = c, k = 0, beta = beta, P = start(P3),
+    Pw = start(W3 or P3), n = NS, rejected = 0 }, Filter)
 end
 
 --- A copy (a snapshot to return to).
 function Filter:copy()
-  local P, beta = {}, {}
-  for i = 1, #self.P do P[i] = self.P[i] end
+  local P, Pw, beta = {}, {}, {}
+  for i = 1, #self.P do P[i], Pw[i] = self.P[i], self.Pw[i] end
   for i = 1, #self.beta do beta[i] = self.beta[i] end
   return setmetatable({ x = self.x, y = self.y, c = self.c, k = self.k, beta = beta, P = P,
-    n = self.n, rejected = self.rejected }, Filter)
+    Pw = Pw, n = self.n, rejected = self.rejected }, Filter)
 end
 
 -- P ← F P Fᵀ for F = I + the column `f` in column `col` (rows 1, 2).
@@ -105,25 +106,30 @@ function Filter:step(bx, by, gyro, dt)
   local s = 1 + self.k
   local fx, fy = s * ux, s * uy
   self.x, self.y = self.x + fx, self.y + fy
-  local P = self.P
   -- ∂/∂c of the step: (fy, −fx); ∂/∂k: (ux, uy)
   local NS = self.n
-  add_column(P, NS, 3, fy, -fx)
-  add_column(P, NS, 4, ux, uy)
   local q = M.ODOMETRY_FRACTION * M.ODOMETRY_FRACTION * (bx * bx + by * by) + 1e-8
-  P[1], P[NS + 2] = P[1] + q, P[NS + 2] + q
-  P[2 * NS + 3] = P[2 * NS + 3] + M.OFFSET_WALK * dt
+  for pass = 1, 2 do
+    local P = pass == 1 and self.P or self.Pw
+    add_column(P, NS, 3, fy, -fx)
+    add_column(P, NS, 4, ux, uy)
+    P[1], P[NS + 2] = P[1] + q, P[NS + 2] + q
+    P[2 * NS + 3] = P[2 * NS + 3] + M.OFFSET_WALK * dt
+  end
 end
 
 --- Let time pass with no odometry: the position and the offset walk.
 -- @tparam number dt seconds
 -- @tparam boolean odometry the robot has odometry (only the offset walks)
 function Filter:walk(dt, odometry)
-  local P, NS = self.P, self.n
-  if not odometry then
-    P[1], P[NS + 2] = P[1] + M.FREE_WALK * dt, P[NS + 2] + M.FREE_WALK * dt
+  local NS = self.n
+  for pass = 1, 2 do
+    local P = pass == 1 and self.P or self.Pw
+    if not odometry then
+      P[1], P[NS + 2] = P[1] + M.FREE_WALK * dt, P[NS + 2] + M.FREE_WALK * dt
+    end
+    P[2 * NS + 3] = P[2 * NS + 3] + M.OFFSET_WALK * dt
   end
-  P[2 * NS + 3] = P[2 * NS + 3] + M.OFFSET_WALK * dt
 end
 
 -- 3×3 inverse (flat), nil when singular.
@@ -146,7 +152,7 @@ M.inverse3 = inverse3
 -- push the wheels did not see).
 -- @treturn boolean accepted
 -- @treturn number the Mahalanobis² distance
-function Filter:update(cam, zx, zy, zyaw, R, gyro, dx, dy, sure)
+function Filter:update(cam, zx, zy, zyaw, R, gyro, dx, dy, sure, Rw)
   local P, NS = self.P, self.n
   -- the measurement's rows: (x, y, −c + β_cam), each as two (column, sign) pairs
   local HC = { { 1, 1, 1, 0 }, { 2, 1, 2, 0 }, { 3, -1, 4 + cam, 1 } }
@@ -178,7 +184,9 @@ function Filter:update(cam, zx, zy, zyaw, R, gyro, dx, dy, sure)
     if sure then
       self.rejected = self.rejected + 1
       local j = M.JUMP * M.JUMP
+      local Pw = self.Pw
       P[1], P[NS + 2] = P[1] + j, P[NS + 2] + j
+      Pw[1], Pw[NS + 2] = Pw[1] + j, Pw[NS + 2] + j
     end
     return false, d2
   end
@@ -207,12 +215,47 @@ function Filter:update(cam, zx, zy, zyaw, R, gyro, dx, dy, sure)
       P[(r - 1) * NS + c], P[(c - 1) * NS + r] = v, v
     end
   end
+  -- the frames' own noise through the same gains (Joseph's form): Pw ← A Pw Aᵀ + K Rw Kᵀ,
+  -- A = I − K H; what the mounts and the map add is the caller's (`tagpose.localizer.bias`)
+  local Pw, A = self.Pw, {}
+  Rw = Rw or R
+  for r = 1, NS do
+    for c = 1, NS do
+      local v = r == c and 1 or 0
+      for m = 1, 3 do
+        local h = HC[m]
+        local hc = (h[1] == c and h[2] or 0) + (h[3] == c and h[4] or 0)
+        v = v - K[(r - 1) * 3 + m] * hc
+      end
+      A[(r - 1) * NS + c] = v
+    end
+  end
+  local T = {}
+  for r = 1, NS do
+    for c = 1, NS do
+      local v = 0
+      for k = 1, NS do v = v + A[(r - 1) * NS + k] * Pw[(k - 1) * NS + c] end
+      T[(r - 1) * NS + c] = v
+    end
+  end
+  for r = 1, NS do
+    for c = r, NS do
+      local v = 0
+      for k = 1, NS do v = v + T[(r - 1) * NS + k] * A[(c - 1) * NS + k] end
+      for m = 1, 3 do
+        local km = K[(r - 1) * 3 + m]
+        for l = 1, 3 do v = v + km * Rw[(m - 1) * 3 + l] * K[(c - 1) * 3 + l] end
+      end
+      Pw[(r - 1) * NS + c], Pw[(c - 1) * NS + r] = v, v
+    end
+  end
   return true, d2
 end
 
---- The robot's heading (`gyro − c`): its covariances with x and y, and its variance.
+--- The robot's heading (`gyro − c`): its covariances with x and y, and its variance, from the
+-- frames' own noise (`Pw`).
 function Filter:heading_cov()
-  local P, NS = self.P, self.n
+  local P, NS = self.Pw, self.n
   return -P[3], -P[NS + 3], P[2 * NS + 3]
 end
 
