@@ -50,6 +50,8 @@ Filter.__index = Filter
 -- @tparam {number,...} P3 3×3 over (x, y, c); the scale starts at 0 with `SCALE_SIGMA`
 -- @tparam int cameras how many cameras (each a heading error, 0 with `camera_sigma`)
 -- @tparam number camera_sigma σ of a camera's heading error (radians)
+-- @tparam[opt] {number,...} W3 3×3 over (x, y, c) of the frame's own noise alone, the start of
+--   `Pw` (the frames' noise carried through the gains; default P3)
 -- @treturn table
 function M.new(x, y, c, P3, cameras, camera_sigma, W3)
   local NS = 4 + cameras
@@ -149,7 +151,8 @@ M.inverse3 = inverse3
 -- 3×3 covariance R of the frame's pose, the gyro reading at the frame's time; at (dx, dy) from
 -- the state's position (the odometry's motion between the state's time and the frame's). A
 -- frame `sure` of itself (several tags) that is past the gate widens the position's variance (a
--- push the wheels did not see).
+-- push the wheels did not see). `Rw`, the part of R that is the frame's own noise, is carried
+-- through the same gains into `Pw` (default R).
 -- @treturn boolean accepted
 -- @treturn number the Mahalanobis² distance
 function Filter:update(cam, zx, zy, zyaw, R, gyro, dx, dy, sure, Rw)
