@@ -4,12 +4,14 @@
 # each run timed (wall seconds, on the machine named first), then scored with the peers by
 # bench/score_drive.lua, one table per log; and a causality check: the fused run on the log cut
 # at 30 s (the rows of corners.csv, odometry.csv and gyro.csv with time < 30) must give the
-# full run's rows before 30 s, byte for byte.
+# full run's rows before 30 s, byte for byte; and the fused run's map check against the tag
+# the log's meta.json says was moved (bench/map_check.lua).
 #
 #   bench/drive.sh [LUA]
 #
-# LUA default lua5.4 (runs the localizer and the scorer). Exits 1 when a run fails or the cut
-# run's rows differ from the full run's (after printing everything else).
+# LUA default lua5.4 (runs the localizer and the scorer). Exits 1 when a run fails, the cut
+# run's rows differ from the full run's, or the map check misses the moved tag (after printing
+# everything else).
 set -u
 cd "$(dirname "$0")/.." || exit 1
 lua=${1:-lua5.4}
@@ -44,7 +46,7 @@ for log in drive drive_hard; do
   mkdir -p "$work"
   fused=$work/tagpose_fused.csv single=$work/tagpose_single.csv
   run "$log fused" "$dir" "$fused" --odometry "$dir/odometry.csv" --gyro "$dir/gyro.csv" \
-    || exit 1
+    --map-check "$work/check.csv" || exit 1
   fused_secs=$secs
   run "$log single" "$dir" "$single" --gyro "$dir/gyro.csv" --single || exit 1
   single_secs=$secs
@@ -55,6 +57,7 @@ for log in drive drive_hard; do
   echo
   echo "tagpose_fused: corners, odometry and gyro, ${fused_secs} s wall;" \
     "tagpose_single: corners and gyro (--single), ${single_secs} s wall"
+  "$lua" bench/map_check.lua "$dir" "$work/check.csv" || status=1
 
   # causality: the log cut at CUT s, run fused, against the full run's rows before CUT s
   cut=$work/cut

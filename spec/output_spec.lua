@@ -171,7 +171,7 @@ describe("tagpose.formats.output", function()
       assert.equal(text, run.read(got))
       assert.is_true(is("-p", fifo), "the FIFO replaced by a file")
       -- the writer first: it waits for its reader, as any writer of a FIFO does
-      shown, status = run.run(writer(fifo, "late\n") .. " & sleep 1; timeout 10 cat "
+      shown, status = run.run(writer(fifo, "late\n") .. " & sleep 0.2; timeout 10 cat "
         .. run.quote(fifo) .. " > " .. run.quote(got) .. "; wait")
       assert.equal(0, status, shown)
       assert.equal("late\n", run.read(got))

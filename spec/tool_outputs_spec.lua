@@ -173,7 +173,7 @@ describe("tagpose-replay and tagpose-calibrate", function()
         local parts = { run.quote(run.lua()), run.quote(os.getenv("PWD") .. "/" .. c[1]) }
         for a in c[2]:gmatch("%S+") do parts[#parts + 1] = run.quote(a) end
         -- the reader (`true`) is gone before the command writes
-        local pipeline = "{ sleep 0.5; " .. table.concat(parts, " ")
+        local pipeline = "{ sleep 0.2; " .. table.concat(parts, " ")
           .. " 2>err.txt; echo $? >status.txt; } | true"
         for _, ignored in ipairs({ false, true }) do
           local script = (ignored and "trap '' PIPE; " or "") .. pipeline
