@@ -199,6 +199,25 @@ local function distance(a, b, cap)
   return prev[lb]
 end
 
+--- The name among `names` that `name` most likely means: the same in another case, one at most
+-- two edits away, or one with something added or cut off (`prior_pose`, `max_iter`; three
+-- characters or more each). What every "did you mean" of tagpose's says.
+-- @tparam string name
+-- @tparam {string,...} names
+-- @treturn string|nil the nearest, nil when none is that near
+function M.nearest(name, names)
+  local best, best_d = nil, 3
+  for _, a in ipairs(names) do
+    local d = a:lower() == name:lower() and 0 or distance(a, name, 2)
+    if d > 2 and #name >= 3 and #a >= 3 and (name:sub(1, #a) == a or a:sub(1, #name) == name)
+    then
+      d = 2
+    end
+    if d < best_d then best, best_d = a, d end
+  end
+  return best
+end
+
 --- The message for a key that a table does not take, with the likely intended key: the same
 -- key in another case, or one at most two edits away.
 -- @tparam any key the unknown key
@@ -215,15 +234,7 @@ function M.unknown_key_message(key, allowed, where, misplaced)
   if misplaced and misplaced[key] then
     return head .. " (did you mean " .. misplaced[key] .. "?)"
   end
-  local best, best_d = nil, 3
-  for _, a in ipairs(allowed) do
-    local d = a:lower() == key:lower() and 0 or distance(a, key, 2)
-    -- a known key with something added or cut off (`prior_pose`, `max_iter`)
-    if d > 2 and #key >= 3 and #a >= 3 and (key:sub(1, #a) == a or a:sub(1, #key) == key) then
-      d = 2
-    end
-    if d < best_d then best, best_d = a, d end
-  end
+  local best = M.nearest(key, allowed)
   if best then return head .. " (did you mean '" .. best .. "'?)" end
   return head .. " (known keys: " .. table.concat(allowed, ", ") .. ")"
 end

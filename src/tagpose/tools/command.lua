@@ -28,6 +28,7 @@
 -- @module tagpose.tools.command
 
 local compat = require("tagpose.core.compat")
+local core_args = require("tagpose.core.args")
 local files = require("tagpose.tools.files")
 local output = require("tagpose.formats.output")
 
@@ -122,23 +123,6 @@ function M.bare_metres(option, value, tag)
   if tag <= M.MAX_BARE_METRES then return nil end
   return ("%s %s has no unit and reads as metres: a tag %.10g m wide? Give the unit (%s)")
     :format(option, value, tag, value:gsub("%s*,%s*", "mm,") .. "mm")
-end
-
--- Levenshtein distance of two short strings
-local function distance(a, b)
-  local prev, cur = {}, {}
-  for j = 0, #b do prev[j] = j end
-  for i = 1, #a do
-    cur[0] = i
-    for j = 1, #b do
-      local v = prev[j - 1] + (a:byte(i) == b:byte(j) and 0 or 1)
-      if prev[j] + 1 < v then v = prev[j] + 1 end
-      if cur[j - 1] + 1 < v then v = cur[j - 1] + 1 end
-      cur[j] = v
-    end
-    prev, cur = cur, prev
-  end
-  return prev[#b]
 end
 
 --- How each kind of option reads its value: `read(o, v, bad)` returns what the option sets
@@ -257,15 +241,11 @@ local function help_text(C, spec)
   return table.concat(out)
 end
 
--- the nearest known option to an unknown one (at most two edits, or a known one cut short)
+-- the nearest known option to an unknown one (`tagpose.core.args.nearest`)
 local function nearest(name, options)
-  local best, best_d = nil, 3
-  for _, o in ipairs(options) do
-    local d = distance(name, o.name)
-    if d > 2 and #name > 3 and o.name:sub(1, #name) == name then d = 2 end
-    if d < best_d then best, best_d = o.name, d end
-  end
-  return best
+  local names = {}
+  for i, o in ipairs(options) do names[i] = o.name end
+  return core_args.nearest(name, names)
 end
 
 --- A command's frame.
