@@ -89,10 +89,12 @@ end
 -- The camera → field rotation of an observation under the pose: R·M into out.
 local rfc = {}
 
--- Visit the corners of observation o under the pose (r, t): calls f(ctx, k, ru, rv, e, v) with
--- the residuals and the field-frame pixel gradients. Returns the sum of squared residuals, or
--- huge when a corner is behind the camera. (Written out for the two users below.)
-local function corner_terms(o, r, tx, ty, tz, sigma, N, G, W)
+-- The corners of observation o under the pose (r, t): the sum of squared residuals over σ² (huge
+-- when a corner is behind the camera), and what is asked of their gradients `e` (field frame):
+-- the pose's normal equations into N; with G the mount's (G.mount) and the tag place's
+-- (o.gtag) cross terms with the pose, for the covariance; with A and b the tag place's own
+-- normal equations, `A += e eᵀ`, `b += e r` (the map check).
+local function corner_terms(o, r, tx, ty, tz, sigma, N, G, A, b)
   local mnt = o.mount
   multiply(r, mnt.r, rfc)
   local f1, f2, f3, f4, f5, f6, f7, f8, f9 = rfc[1], rfc[2], rfc[3], rfc[4], rfc[5], rfc[6],
@@ -106,8 +108,8 @@ local function corner_terms(o, r, tx, ty, tz, sigma, N, G, W)
   local fx, fy = o.fx / sigma, o.fy / sigma
   local sum = 0
   for k = 1, 4 do
-    local b = 3 * k
-    local p1, p2, p3 = P[b - 2], P[b - 1], P[b]
+    local q = 3 * k
+    local p1, p2, p3 = P[q - 2], P[q - 1], P[q]
     local d1, d2, d3 = p1 - cx, p2 - cy, p3 - cz
     local X = f1 * d1 + f4 * d2 + f7 * d3
     local Y = f2 * d1 + f5 * d2 + f8 * d3
@@ -117,12 +119,22 @@ local function corner_terms(o, r, tx, ty, tz, sigma, N, G, W)
     local xn, yn = X * iz, Y * iz
     local ru, rv = fx * (xn - obs[2 * k - 1]), fy * (yn - obs[2 * k])
     sum = sum + ru * ru + rv * rv
+    -- ∂(u, v)/∂X in the camera frame, then in the field frame (columns of R·M)
+    local a1, a3 = fx * iz, -fx * xn * iz
+    local b2, b3 = fy * iz, -fy * yn * iz
+    local eu1, eu2, eu3 = f1 * a1 + f3 * a3, f4 * a1 + f6 * a3, f7 * a1 + f9 * a3
+    local ev1, ev2, ev3 = f2 * b2 + f3 * b3, f5 * b2 + f6 * b3, f8 * b2 + f9 * b3
+    if A then
+      for side = 1, 2 do
+        local e1, e2, e3, res = eu1, eu2, eu3, ru
+        if side == 2 then e1, e2, e3, res = ev1, ev2, ev3, rv end
+        A[1], A[2], A[3] = A[1] + e1 * e1, A[2] + e1 * e2, A[3] + e1 * e3
+        A[4], A[5], A[6] = A[4] + e2 * e1, A[5] + e2 * e2, A[6] + e2 * e3
+        A[7], A[8], A[9] = A[7] + e3 * e1, A[8] + e3 * e2, A[9] + e3 * e3
+        b[1], b[2], b[3] = b[1] + e1 * res, b[2] + e2 * res, b[3] + e3 * res
+      end
+    end
     if N then
-      -- ∂(u, v)/∂X in the camera frame, then in the field frame (columns of R·M)
-      local a1, a3 = fx * iz, -fx * xn * iz
-      local b2, b3 = fy * iz, -fy * yn * iz
-      local eu1, eu2, eu3 = f1 * a1 + f3 * a3, f4 * a1 + f6 * a3, f7 * a1 + f9 * a3
-      local ev1, ev2, ev3 = f2 * b2 + f3 * b3, f5 * b2 + f6 * b3, f8 * b2 + f9 * b3
       local v1, v2, v3 = p1 - tx, p2 - ty, p3 - tz
       -- rows (e × v, −e): a point moves by δt + δω × v, so the residual by e·δt + (v × e)·δω;
       -- the point is fixed and the robot moves, hence the signs
@@ -139,8 +151,8 @@ local function corner_terms(o, r, tx, ty, tz, sigma, N, G, W)
         local q2 = r[2] * v1 + r[5] * v2 + r[8] * v3 - m[2]
         local q3 = r[3] * v1 + r[6] * v2 + r[9] * v3 - m[3]
         for side = 1, 2 do
-          local e1, e2, e3, w1, w2, w3, res = eu1, eu2, eu3, wu1, wu2, wu3, ru
-          if side == 2 then e1, e2, e3, w1, w2, w3, res = ev1, ev2, ev3, wv1, wv2, wv3, rv end
+          local e1, e2, e3, w1, w2, w3 = eu1, eu2, eu3, wu1, wu2, wu3
+          if side == 2 then e1, e2, e3, w1, w2, w3 = ev1, ev2, ev3, wv1, wv2, wv3 end
           local g1 = r[1] * e1 + r[4] * e2 + r[7] * e3
           local g2 = r[2] * e1 + r[5] * e2 + r[8] * e3
           local g3 = r[3] * e1 + r[6] * e2 + r[9] * e3
@@ -155,12 +167,27 @@ local function corner_terms(o, r, tx, ty, tz, sigma, N, G, W)
             gp[(a - 1) * 3 + 2] = gp[(a - 1) * 3 + 2] + ja * e2
             gp[(a - 1) * 3 + 3] = gp[(a - 1) * 3 + 3] + ja * e3
           end
-          if W then W[#W + 1] = res end
         end
       end
     end
   end
   return sum
+end
+
+--- The normal equations of a tag's place (its centre moved by δp in the field, the robot's pose
+-- held): `A += Σ e eᵀ`, `b += Σ e r` over its 8 residuals; the least-squares move is
+-- `δp = −A⁻¹ b`.
+-- @tparam table o an observation
+-- @tparam {number,...} r robot → field rotation
+-- @tparam number tx
+-- @tparam number ty
+-- @tparam number tz
+-- @tparam number sigma σ, px
+-- @tparam {number,...} A 3×3 (flat) to add to
+-- @tparam {number,...} b 3 numbers to add to
+-- @treturn boolean false when a corner is behind the camera (A and b then incomplete)
+function M.tag_normal(o, r, tx, ty, tz, sigma, A, b)
+  return corner_terms(o, r, tx, ty, tz, sigma, nil, nil, A, b) < huge
 end
 
 --- The pixel cost of one observation at a pose: the sum of squared residuals over σ².
