@@ -235,6 +235,16 @@ local function prior_terms(pr, r, tz, N)
   return sum
 end
 
+--- The priors' cost at a pose: the floor's, gravity's and the heading's residuals over their σ,
+-- squared and summed, as the fit counts them.
+-- @tparam table pr the priors (`fit`)
+-- @tparam {number,...} r robot → field rotation
+-- @tparam number tz the robot's height
+-- @treturn number χ²
+function M.prior_cost(pr, r, tz)
+  return prior_terms(pr, r, tz)
+end
+
 -- Total cost over the active observations.
 local function cost(obs, n, active, pr, r, tx, ty, tz, sigma, N)
   if N then zero(N, 27) end

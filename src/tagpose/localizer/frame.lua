@@ -56,6 +56,11 @@ local function copy_pose(p)
   return { r = r, t = { p.t[1], p.t[2], p.t[3] } }
 end
 
+-- The priors' χ² at a pose (the fit's own terms: `fit.prior_cost`).
+local function prior_chi2(pr, pose)
+  return fit.prior_cost(pr, pose.r, pose.t[3])
+end
+
 -- The score of a start: the priors' cost and each active tag's χ², capped.
 local function score(obs, n, active, pr, pose, sigma)
   local r, t = pose.r, pose.t
@@ -66,21 +71,7 @@ local function score(obs, n, active, pr, pose, sigma)
       s = s + (c < M.CAP and c or M.CAP)
     end
   end
-  -- the priors, as the fit counts them
-  if pr.sigma_z then s = s + (t[3] / pr.sigma_z) ^ 2 end
-  if pr.sigma_tilt then s = s + (r[3] ^ 2 + r[6] ^ 2) / pr.sigma_tilt ^ 2 end
-  if pr.yaw then s = s + (fit.wrap(fit.yaw(r) - pr.yaw) / pr.sigma_yaw) ^ 2 end
-  return s
-end
-
--- The priors' χ² at a pose.
-local function prior_chi2(pr, pose)
-  local r, t = pose.r, pose.t
-  local s = 0
-  if pr.sigma_z then s = s + (t[3] / pr.sigma_z) ^ 2 end
-  if pr.sigma_tilt then s = s + (r[3] ^ 2 + r[6] ^ 2) / pr.sigma_tilt ^ 2 end
-  if pr.yaw then s = s + (fit.wrap(fit.yaw(r) - pr.yaw) / pr.sigma_yaw) ^ 2 end
-  return s
+  return s + prior_chi2(pr, pose)
 end
 
 -- From a pose and a set of active tags: fit, take out the worst tag past `TAG_GATE` one at a

@@ -53,6 +53,14 @@ M.ALTERNATIVE_GATE = 20
 local Localizer = {}
 Localizer.__index = Localizer
 
+-- A frame's detections: a list (a single detection passed for it said so), at the caller's line.
+local function check_detections(detections, n, fname)
+  if type(detections) ~= "table" then
+    args.raise(n, fname, "detections: table expected, got " .. type(detections), 3)
+  end
+  if detections.corners ~= nil then args.raise(n, fname, args.ONE_DETECTION, 3) end
+end
+
 --- A localizer on a map.
 -- @tparam table map a layout `{tags = {[id] = {size =, position =, quaternion =}}}` in the
 --   field's frame (`tagpose.layout.read` of a WPILib field, an apriltag_ros bundle, ...)
@@ -135,12 +143,7 @@ function M.localize(detections, camera, map, options)
     end
     options = rest
   end
-  if type(detections) ~= "table" then
-    args.raise(1, "localize", "detections: table expected, got " .. type(detections), 2)
-  end
-  if detections.corners ~= nil then
-    args.raise(1, "localize", args.ONE_DETECTION, 2)
-  end
+  check_detections(detections, 1, "localize")
   local tags, err = model.read(map)
   if not tags then args.raise(3, "localize", err, 2) end
   local cam = read_camera("camera", camera, 3, 2, "localize")
@@ -228,12 +231,7 @@ function Localizer:update(camera, detections, time, mount)
       and ("%q"):format(camera) or describe(camera)) .. " (cameras: "
       .. table.concat(names, ", ") .. ")", 2)
   end
-  if type(detections) ~= "table" then
-    args.raise(2, "update", "detections: table expected, got " .. type(detections), 2)
-  end
-  if detections.corners ~= nil then
-    args.raise(2, "update", args.ONE_DETECTION, 2)
-  end
+  check_detections(detections, 2, "update")
   check_time(time, 3, "update")
   local cam
   if mount ~= nil then
