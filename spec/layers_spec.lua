@@ -3,7 +3,7 @@
 -- require graph has no cycle. The graph is read from the sources: every `require("tagpose…")`,
 -- at the top of a module or lazily inside a function, and every string that names a module of
 -- src/ (the facade's fields loaded when first used, `tagpose.layout`'s `lazy(name)`).
-local lfs = require("lfs")
+local run = require("support.run")
 
 -- The layers, lowest first: a module belongs to the layer of the longest prefix that names it.
 local LAYERS = {
@@ -59,19 +59,6 @@ local TOOL_EXCEPTIONS = {
   ["tagpose.formats.luadata"] = "the one reader of Lua data files",
 }
 
-local function lua_files(dir, out)
-  for name in lfs.dir(dir) do
-    local path = dir .. "/" .. name
-    if name ~= "." and name ~= ".." then
-      if lfs.attributes(path, "mode") == "directory" then
-        lua_files(path, out)
-      elseif name:match("%.lua$") then
-        out[#out + 1] = path
-      end
-    end
-  end
-  return out
-end
 
 local function module_name(path)
   return (path:gsub("^src/", ""):gsub("%.lua$", ""):gsub("/init$", ""):gsub("/", "."))
@@ -93,7 +80,7 @@ end
 -- modules by name, and the edges: `edges[from][to] = true` when `from` names `to`, lazy unless
 -- a line at the top level (no indent) requires it
 local function read_graph()
-  local files = lua_files("src", {})
+  local files = run.files("src", "%.lua$")
   table.sort(files)
   local modules = {}
   for _, path in ipairs(files) do modules[module_name(path)] = path end

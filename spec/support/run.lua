@@ -32,6 +32,28 @@ function R.script(path, ...)
   return R.run(table.concat(parts, " ") .. " 2>&1")
 end
 
+--- The paths of every file under `dir` whose name matches `pattern` (a Lua pattern), any depth,
+-- sorted.
+function R.files(dir, pattern)
+  local lfs = require("lfs")
+  local out = {}
+  local function walk(d)
+    for name in lfs.dir(d) do
+      local path = d .. "/" .. name
+      if name ~= "." and name ~= ".." then
+        if lfs.attributes(path, "mode") == "directory" then
+          walk(path)
+        elseif name:match(pattern) then
+          out[#out + 1] = path
+        end
+      end
+    end
+  end
+  walk(dir)
+  table.sort(out)
+  return out
+end
+
 --- A new folder under the system's temporary folder, named by os.tmpname (the file it makes
 -- removed), created with `sub` inside it when given (mkdir -p); returns the folder, not `sub`.
 function R.tmpdir(sub)
