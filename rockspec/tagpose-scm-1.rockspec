@@ -93,6 +93,7 @@ build = {
     ["tagpose.localizer.filter"] = "src/tagpose/localizer/filter.lua",
     ["tagpose.localizer.fit"] = "src/tagpose/localizer/fit.lua",
     ["tagpose.localizer.frame"] = "src/tagpose/localizer/frame.lua",
+    ["tagpose.localizer.linalg"] = "src/tagpose/localizer/linalg.lua",
     ["tagpose.localizer.mapcheck"] = "src/tagpose/localizer/mapcheck.lua",
     ["tagpose.localizer.options"] = "src/tagpose/localizer/options.lua",
     ["tagpose.localizer.result"] = "src/tagpose/localizer/result.lua",

@@ -20,6 +20,7 @@
 -- @module tagpose.localizer.filter
 
 local fit = require("tagpose.localizer.fit")
+local linalg = require("tagpose.localizer.linalg")
 
 local cos, sin, sqrt = math.cos, math.sin, math.sqrt
 local wrap = fit.wrap
@@ -134,18 +135,6 @@ function Filter:walk(dt, odometry)
   end
 end
 
--- 3×3 inverse (flat), nil when singular.
-local function inverse3(S)
-  local a, b, c, d, e, f, g, h, i = S[1], S[2], S[3], S[4], S[5], S[6], S[7], S[8], S[9]
-  local A, B, C = e * i - f * h, -(d * i - f * g), d * h - e * g
-  local det = a * A + b * B + c * C
-  if not (det > 0 or det < 0) then return nil end
-  local r = 1 / det
-  return { A * r, -(b * i - c * h) * r, (b * f - c * e) * r,
-    B * r, (a * i - c * g) * r, -(a * f - c * d) * r,
-    C * r, -(a * h - b * g) * r, (a * e - b * d) * r }
-end
-M.inverse3 = inverse3
 
 --- Correct the state with a frame's pose (x, y, yaw) from camera `cam` (its index) and the
 -- 3×3 covariance R of the frame's pose, the gyro reading at the frame's time; at (dx, dy) from
@@ -177,7 +166,7 @@ function Filter:update(cam, zx, zy, zyaw, R, gyro, dx, dy, sure, Rw)
         + R[(i - 1) * 3 + j]
     end
   end
-  local Si = inverse3(S)
+  local Si = linalg.inverse3(S)
   if not Si then return false, math.huge end
   local d2 = 0
   for i = 1, 3 do

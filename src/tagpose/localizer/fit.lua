@@ -23,10 +23,11 @@
 -- @module tagpose.localizer.fit
 
 local lsq = require("tagpose.core.lsq")
+local linalg = require("tagpose.localizer.linalg")
 local rotation = require("tagpose.core.rotation")
 local compat = require("tagpose.core.compat")
 
-local abs, huge, pi = math.abs, math.huge, math.pi
+local huge, pi = math.huge, math.pi
 local SQRT3 = math.sqrt(3)
 local atan2 = compat.atan2
 local damped_step, cayley = lsq.damped_step, lsq.cayley
@@ -309,46 +310,6 @@ function M.fit(obs, n, active, pr, pose, sigma, iterations)
   return c
 end
 
--- Gauss-Jordan inverse of a dense n×n (flat row-major), partial pivoting; nil when singular.
-local function invert(A, n, out)
-  local a = {}
-  for i = 1, n * n do a[i] = A[i] end
-  for i = 1, n * n do out[i] = 0 end
-  for i = 1, n do out[(i - 1) * n + i] = 1 end
-  for col = 1, n do
-    local p, best = col, abs(a[(col - 1) * n + col])
-    for row = col + 1, n do
-      local v = abs(a[(row - 1) * n + col])
-      if v > best then p, best = row, v end
-    end
-    if not (best > 1e-300) then return nil end
-    if p ~= col then
-      for j = 1, n do
-        local i1, i2 = (col - 1) * n + j, (p - 1) * n + j
-        a[i1], a[i2] = a[i2], a[i1]
-        out[i1], out[i2] = out[i2], out[i1]
-      end
-    end
-    local d = 1 / a[(col - 1) * n + col]
-    for j = 1, n do
-      a[(col - 1) * n + j] = a[(col - 1) * n + j] * d
-      out[(col - 1) * n + j] = out[(col - 1) * n + j] * d
-    end
-    for row = 1, n do
-      if row ~= col then
-        local f = a[(row - 1) * n + col]
-        if f ~= 0 then
-          for j = 1, n do
-            a[(row - 1) * n + j] = a[(row - 1) * n + j] - f * a[(col - 1) * n + j]
-            out[(row - 1) * n + j] = out[(row - 1) * n + j] - f * out[(col - 1) * n + j]
-          end
-        end
-      end
-    end
-  end
-  return out
-end
-M.invert = invert
 
 -- lsq order (δω, δt) → the contract's (δt, δω)
 local ORDER = { 4, 5, 6, 1, 2, 3 }
@@ -397,7 +358,7 @@ function M.covariance(obs, n, active, pr, pose, sigma, nuisance)
   for a = 1, 6 do
     for b = 1, 6 do H[(a - 1) * 6 + b] = N[IDX[a][b]] end
   end
-  local Hi = invert(H, 6, {})
+  local Hi = linalg.invert(H, 6, {})
   if not Hi then return nil end
   -- Σ_b G_b Σ_b G_bᵀ, 6×6 (lsq order)
   local S = zero({}, 36)

@@ -2,6 +2,7 @@
 -- @module tagpose.localizer.mapcheck
 
 local fit = require("tagpose.localizer.fit")
+local linalg = require("tagpose.localizer.linalg")
 
 local sqrt = math.sqrt
 local tag_normal = fit.tag_normal
@@ -17,7 +18,7 @@ function M.add(checks, time, camera, obs, r, t, sigma)
   for _, ob in ipairs(obs) do
     local A, b = { 0, 0, 0, 0, 0, 0, 0, 0, 0 }, { 0, 0, 0 }
     if tag_normal(ob, r, t[1], t[2], t[3], sigma, A, b) then
-      local Ai = fit.invert(A, 3, {})
+      local Ai = linalg.invert(A, 3, {})
       if Ai then
         local e = ch[ob.id] or {}
         ch[ob.id] = e
@@ -64,7 +65,7 @@ function M.list(checks)
         used = used + 1
       end
     end
-    local Ai = used > 0 and fit.invert(A, 3, {})
+    local Ai = used > 0 and linalg.invert(A, 3, {})
     if Ai then
       local dx = Ai[1] * b[1] + Ai[2] * b[2] + Ai[3] * b[3]
       local dy = Ai[4] * b[1] + Ai[5] * b[2] + Ai[6] * b[3]
