@@ -12,24 +12,7 @@ local dir = run.tmpdir()
 
 -- a corner log of the glued cube (sessions on three faces) and its camera file
 local function write_log(rng, truth)
-  local lines = { "frame,tag,u1,v1,u2,v2,u3,v3,u4,v4" }
-  local frame = 0
-  for _, down in ipairs({ { 0, 0, -1 }, { 1, 0, 0 }, { 0, 1, 0 } }) do
-    for _, dets in ipairs(layouts.session(truth, camera, rng, 20, down, 0.1)) do
-      for _, d in ipairs(dets) do
-        local row = { frame, d.id }
-        for _, c in ipairs(d.corners) do
-          row[#row + 1] = ("%.17g"):format(c[1])
-          row[#row + 1] = ("%.17g"):format(c[2])
-        end
-        lines[#lines + 1] = table.concat(row, ",")
-      end
-      frame = frame + 1
-    end
-  end
-  run.write(dir .. "/corners.csv", table.concat(lines, "\n") .. "\n")
-  run.write(dir .. "/camera.lua", ("return { fx = %.17g, fy = %.17g, cx = %.17g, cy = %.17g }\n")
-    :format(camera.fx, camera.fy, camera.cx, camera.cy))
+  layouts.write_log(dir, truth, camera, rng, 20, 0.1)
 end
 
 describe("bin/tagpose-calibrate", function()

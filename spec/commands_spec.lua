@@ -37,23 +37,7 @@ do
   local camera = { fx = 307.22, fy = 305.74, cx = 157.14, cy = 117.87, width = 320, height = 240 }
   local rng = geometry.rng(41)
   local _, truth = layouts.cube(rng, 0.0229, 0.0548, 2, 3, 0.3)
-  local lines, frame = { "frame,tag,u1,v1,u2,v2,u3,v3,u4,v4" }, 0
-  for _, down in ipairs({ { 0, 0, -1 }, { 1, 0, 0 }, { 0, 1, 0 } }) do
-    for _, dets in ipairs(layouts.session(truth, camera, rng, 20, down, 0.1)) do
-      for _, d in ipairs(dets) do
-        local row = { frame, d.id }
-        for _, c in ipairs(d.corners) do
-          row[#row + 1] = ("%.17g"):format(c[1])
-          row[#row + 1] = ("%.17g"):format(c[2])
-        end
-        lines[#lines + 1] = table.concat(row, ",")
-      end
-      frame = frame + 1
-    end
-  end
-  run.write(CUBE .. "/corners.csv", table.concat(lines, "\n") .. "\n")
-  run.write(CUBE .. "/camera.lua", ("return { fx = %.17g, fy = %.17g, cx = %.17g, cy = %.17g }\n")
-    :format(camera.fx, camera.fy, camera.cx, camera.cy))
+  layouts.write_log(CUBE, truth, camera, rng, 20, 0.1)
 end
 
 -- the per-tag lines of a calibration's report

@@ -200,4 +200,32 @@ function L.pair_error(a, b)
   return worst_d, worst_r
 end
 
+--- Write a calibration log of `truth` seen by `camera` (sessions of n frames with the body set
+-- down on -z, +x and +y, corner noise sigma: `L.session`) as dir/corners.csv, and the camera
+-- as dir/camera.lua.
+function L.write_log(dir, truth, camera, rng, n, sigma)
+  local lines, frame = { "frame,tag,u1,v1,u2,v2,u3,v3,u4,v4" }, 0
+  for _, down in ipairs({ { 0, 0, -1 }, { 1, 0, 0 }, { 0, 1, 0 } }) do
+    for _, dets in ipairs(L.session(truth, camera, rng, n, down, sigma)) do
+      for _, d in ipairs(dets) do
+        local row = { frame, d.id }
+        for _, c in ipairs(d.corners) do
+          row[#row + 1] = ("%.17g"):format(c[1])
+          row[#row + 1] = ("%.17g"):format(c[2])
+        end
+        lines[#lines + 1] = table.concat(row, ",")
+      end
+      frame = frame + 1
+    end
+  end
+  local function write(path, text)
+    local f = assert(io.open(path, "w"))
+    f:write(text)
+    f:close()
+  end
+  write(dir .. "/corners.csv", table.concat(lines, "\n") .. "\n")
+  write(dir .. "/camera.lua", ("return { fx = %.17g, fy = %.17g, cx = %.17g, cy = %.17g }\n")
+    :format(camera.fx, camera.fy, camera.cx, camera.cy))
+end
+
 return L

@@ -313,13 +313,7 @@ end
 function M.to_nested(r, out)
   if not flat(r) then r = matrix(r, 1, "to_nested", scratch_a) end
   check_out(out, 2, "to_nested")
-  out = out or {}
-  local r1, r2, r3 = out[1] or {}, out[2] or {}, out[3] or {}
-  r1[1], r1[2], r1[3] = r[1], r[2], r[3]
-  r2[1], r2[2], r2[3] = r[4], r[5], r[6]
-  r3[1], r3[2], r3[3] = r[7], r[8], r[9]
-  out[1], out[2], out[3] = r1, r2, r3
-  return out
+  return input.nested(r, out)
 end
 
 --- Flat form of a nested `rotation[row][col]` table.

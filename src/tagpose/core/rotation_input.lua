@@ -97,7 +97,10 @@ function M.check_out(out, n, fname, depth)
   end
 end
 
--- the nested form of a flat r, into out (or a new table)
+--- The nested form of a flat r, into out's rows (or new ones).
+-- @tparam {number,...} r flat 3×3
+-- @tparam[opt] table out nested rows to fill
+-- @treturn table out
 local function nested(r, out)
   out = out or {}
   local r1, r2, r3 = out[1] or {}, out[2] or {}, out[3] or {}
@@ -107,6 +110,8 @@ local function nested(r, out)
   out[1], out[2], out[3] = r1, r2, r3
   return out
 end
+
+M.nested = nested
 
 --- A result r (flat, fresh) in the shape asked: into out (nested or flat), else nested when
 -- the first matrix argument was.
