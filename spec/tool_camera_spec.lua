@@ -30,6 +30,17 @@ describe("--camera", function()
   end
 
   local files = { "opencv_tutorial.xml", "opencv_tutorial.json", "kalibr_camchain.yaml" }
+  -- (the calibration log's first 300 rows: reading the camera is what is checked, not the
+  -- calibration, and the whole log takes 0.4 s a run)
+  local log = os.tmpname()
+  do
+    local lines = {}
+    for line in io.lines("bench/dev/layout_cube/calib/corners.csv") do
+      lines[#lines + 1] = line
+      if #lines > 300 then break end
+    end
+    run.write(log, table.concat(lines, "\n") .. "\n")
+  end
   for _, file in ipairs(files) do
     it("of tagpose-replay reads " .. file, function()
       local out, status = run.script("bin/tagpose-replay", "examples/data/approach.csv",
@@ -39,8 +50,7 @@ describe("--camera", function()
     end)
 
     it("of tagpose-calibrate reads " .. file, function()
-      local out, status = run.script("bin/tagpose-calibrate",
-        "bench/dev/layout_cube/calib/corners.csv", "--layout",
+      local out, status = run.script("bin/tagpose-calibrate", log, "--layout",
         "bench/dev/layout_cube/nominal_layout.csv", "--camera", CALIBRATIONS .. file)
       assert.equal(0, status, out)
       assert.is_truthy(out:find("residual rms", 1, true), out)
