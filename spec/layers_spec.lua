@@ -31,7 +31,6 @@ local EXCEPTIONS = {
   -- The pose table's fields made on first read (alternative, confidence, covariance) and the
   -- choice of a solution with a prior end the solve in the result; issue 26 wants a result
   -- layer above core that owns the end of every solve, a refactor of its own.
-  ["tagpose.core.result -> tagpose.uncertainty"] = "made-on-read fields of the pose table",
   ["tagpose.core.result -> tagpose.uncertainty.read"] = "made-on-read fields of the pose table",
   ["tagpose.core.result -> tagpose.track"] = "a solve with a prior chooses by the filter",
   -- `tagpose.layout` is both the public field (whose read, write and encode take files) and the
