@@ -47,7 +47,7 @@ local X_COV_A, X_COV_B, X_TRACK = 11, 12, 13 -- the tables made before, to fill 
 
 -- A result's analysis is kept in a record of its own when it has one (an alternative or a track
 -- was read, or the result is an `options.into` table solved again: its covariance tables are
--- filled again), else in `shared`, which holds the analysis of one result, `cached`, at a time:
+-- filled again), else in `shared`, which holds the analysis of one result, `cached`'s, at a time:
 -- the common read of a fresh solve's confidence and covariance allocates nothing but the
 -- covariance. A result whose analysis `shared` no longer holds is analysed again, into it. The
 -- numbers are the same whichever record holds them and however often they are made: the
@@ -57,7 +57,10 @@ local function record()
     0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0 }
 end
 local shared = record()
-local cached = nil -- the metatable whose analysis `shared` holds (`new` clears it, reusing it)
+-- cached[1]: the metatable whose analysis `shared` holds, or false (`new` clears it, reusing it).
+-- (In a table: an upvalue set to each new result would have the collector mark every one of them,
+-- and what they hold, while it marks.)
+local cached = { false }
 
 -- The record of what was made on read, of its own (made at the first need; one table, at its
 -- size).
@@ -117,10 +120,10 @@ local function analyse(mt)
   local x = mt[READ]
   if x then
     if x[X_ANALYSED] then return x end
-  elseif cached == mt then
+  elseif cached[1] == mt then
     return shared
   else
-    x, cached = shared, nil
+    x, cached[1] = shared, false
   end
   local read = lazy.read
   if not read then
@@ -129,7 +132,7 @@ local function analyse(mt)
   end
   local p = read.analyse(mt, x)
   x[X_ANALYSED] = true
-  if x == shared then cached = mt end
+  if x == shared then cached[1] = mt end
   local first = mt[FIRST]
   if rawget(first, "confidence") == nil then
     rawset(first, "confidence", p)
@@ -303,7 +306,7 @@ function M.new(a, ea, b, eb, iterations, la, lb, camera, half, sigma2, side, tim
   end
   -- (an `into` table solved again keeps a record of its own: the tables read before are filled
   -- again)
-  if cached == mt then cached = nil end
+  if cached[1] == mt then cached[1] = false end
   local x = made(mt)
   if x[X_ALT] then spare[result] = x[X_ALT] end
   x[X_ALT], x[X_ANALYSED] = false, false

@@ -1,14 +1,14 @@
 --- A result's confidence and covariance on LuaJIT: `tagpose.uncertainty.read`'s two functions
--- (the same contract, the same record, the same numbers to the bit) in the form LuaJIT's trace
--- compiler takes. `read`'s passes of locals do not compile there (a trace holds at most 127
--- spilled numbers); the candidate records `tagpose.uncertainty` works on cost a copy of the
--- result's numbers into them and back. Here H is factored straight from the result's
--- metatable into a scratch array (`tagpose.uncertainty.matrix`'s factors, written slot by
--- slot), the branch analysis reads those factors, and the pose's factors are kept in the
--- record for its covariance; there are no loops (a trace started in a loop inside the pose's
--- `__index` cannot return through it), so that the whole read is one trace for `confidence`
--- and a side trace of it for `covariance`. Nothing is shared between two results but scratch
--- written and read within one call.
+-- (the same contract, the same record, the same numbers to the bit), in the form LuaJIT's trace
+-- compiler takes. `read`'s passes of locals do not compile there: a trace holds at most 127
+-- spilled numbers, and a side trace takes over every live local of the trace it leaves. So
+-- here each step is a function of its own whose numbers are handed on in arrays (scratch,
+-- written and read within one call), H is factored straight from the result's metatable into
+-- scratch (`tagpose.uncertainty.matrix`'s factors, slot by slot), no number is live across a
+-- call of C (log, a table's allocation: every register is spilled across it), and the
+-- analysis opens with a short loop: its trace is where a caller's trace ends, which would
+-- otherwise take in the whole read (some 2000 instructions of LuaJIT's IR) and, at the end of
+-- a solve in a loop, grow too long to compile and fall back to the interpreter.
 --
 -- The layout it reads and writes is `tagpose.uncertainty.read`'s (and `tagpose.core.result`'s):
 -- the metatable's σ² (or false) at 3, the pose table at 6, its checksum at 7, H of each
@@ -204,7 +204,7 @@ local function shapes(x)
   return phi_a - phi_b + log(across[2] / across[1])
 end
 
--- σ² (into the metatable) and κ (into the record), the pose checked first.
+-- σ² and κ into the record, the pose checked first; returns σ².
 local function noise_of(mt, x)
   local p = mt[FIRST]
   local t, q = p.position, p.quaternion
@@ -216,13 +216,14 @@ local function noise_of(mt, x)
 end
 
 --- The branch analysis of a result, into its record x (`tagpose.uncertainty.read.analyse`: the
--- same numbers; where it branches few values are live in locals, the rest in arrays, since
--- a side trace takes over every live local of the trace it leaves).
+-- same numbers, with few live locals where it branches).
 -- @tparam table mt the result's metatable
 -- @tparam table x its record of what was made on read
 -- @treturn number the pose's confidence (1 when it is the only minimum)
 -- @raise when the pose was changed in place after its solve
 function M.analyse(mt, x)
+  -- (the chord factors and the chord, 0 unless made below: a loop, whose trace of its own ends a
+  -- caller's, see the header)
   for i = 3, 10 do x[i] = 0 end
   local sigma2 = noise_of(mt, x)
   if not mt[ERR_B] then return 1 end
