@@ -227,58 +227,78 @@ local function consider(j, pick, m, c, limit, r2)
 end
 
 -- The first pass of step 3, best first: the children of a weight that is not zero in doubles,
--- until `room` are kept (`consider` and the merge of the runs written out: this is the
--- filter's innermost loop). Returns how many of each candidate are kept, and the places in
--- the runs where it stopped (a child before them of a weight above `TINY` was considered).
+-- until `room` are kept (`consider` and the merge of the runs written out, once for each
+-- candidate: this is the filter's innermost loop). Returns how many of each candidate are
+-- kept, and the places in the runs where it stopped (a child before them of a weight above
+-- `TINY` was considered).
 local function first_pass(room, limit, r2, n1, n2)
   -- luacheck: push ignore 431
   local w1, w2, run1, run2, kept, spp = w1, w2, run1, run2, kept, spp
+  local k1, k1x, k1y, k1vx, k1vy, k1r = k1, k1x, k1y, k1vx, k1vy, k1r
+  local k2, k2x, k2y, k2vx, k2vy, k2r = k2, k2x, k2y, k2vx, k2vy, k2r
   -- luacheck: pop
   local m, c1, c2, a, b = 0, 0, 0, 1, 1
   while m < room do
-    local j, pick
+    local first
     if a > n1 then
       if b > n2 then break end
-      j, b, pick = run2[b], b + 1, 2
+      first = false
     elseif b > n2 then
-      j, a, pick = run1[a], a + 1, 1
+      first = true
     else
       local ja, jb = run1[a], run2[b]
       local wa, wb = w1[ja], w2[jb]
-      if wa > wb or (wa == wb and ja <= jb) then
-        j, a, pick = ja, a + 1, 1
-      else
-        j, b, pick = jb, b + 1, 2
-      end
+      first = wa > wb or (wa == wb and ja <= jb)
     end
-    local w, x, y, vx, vy, kx, ky, kvx, kvy, kr, ki, c
-    if pick == 1 then
-      w, x, y, vx, vy, c = w1, x1[j], y1[j], vx1[j], vy1[j], c1
-      kx, ky, kvx, kvy, kr, ki = k1x, k1y, k1vx, k1vy, k1r, k1
-    else
-      w, x, y, vx, vy, c = w2, x2[j], y2[j], vx2[j], vy2[j], c2
-      kx, ky, kvx, kvy, kr, ki = k2x, k2y, k2vx, k2vy, k2r, k2
-    end
-    local wj = w[j]
-    if wj > TINY then
-      local into = nil
-      for u = 1, c do
-        local dx, r = kx[u] - x, kr[u]
-        if dx * dx < r then
-          local dy, dvx, dvy = ky[u] - y, kvx[u] - vx, kvy[u] - vy
-          if dx * dx + dy * dy + 0.01 * (dvx * dvx + dvy * dvy) < r then
-            into = ki[u]
-            break
+    if first then
+      local j = run1[a]
+      a = a + 1
+      local w = w1[j]
+      if w > TINY then
+        local x, y, vx, vy, into = x1[j], y1[j], vx1[j], vy1[j], nil
+        for u = 1, c1 do
+          local dx, r = k1x[u] - x, k1r[u]
+          if dx * dx < r then
+            local dy, dvx, dvy = k1y[u] - y, k1vx[u] - vx, k1vy[u] - vy
+            if dx * dx + dy * dy + 0.01 * (dvx * dvx + dvy * dvy) < r then
+              into = k1[u]
+              break
+            end
           end
         end
+        if into then
+          w1[into] = w1[into] + w
+        else
+          m, c1 = m + 1, c1 + 1
+          kept[m] = j
+          k1[c1], k1x[c1], k1y[c1], k1vx[c1], k1vy[c1], k1r[c1] = j, x, y, vx, vy,
+            limit * (spp[j] + r2)
+        end
       end
-      if into then
-        w[into] = w[into] + wj
-      else
-        m, c = m + 1, c + 1
-        kept[m] = pick == 1 and j or -j
-        ki[c], kx[c], ky[c], kvx[c], kvy[c], kr[c] = j, x, y, vx, vy, limit * (spp[j] + r2)
-        if pick == 1 then c1 = c else c2 = c end
+    else
+      local j = run2[b]
+      b = b + 1
+      local w = w2[j]
+      if w > TINY then
+        local x, y, vx, vy, into = x2[j], y2[j], vx2[j], vy2[j], nil
+        for u = 1, c2 do
+          local dx, r = k2x[u] - x, k2r[u]
+          if dx * dx < r then
+            local dy, dvx, dvy = k2y[u] - y, k2vx[u] - vx, k2vy[u] - vy
+            if dx * dx + dy * dy + 0.01 * (dvx * dvx + dvy * dvy) < r then
+              into = k2[u]
+              break
+            end
+          end
+        end
+        if into then
+          w2[into] = w2[into] + w
+        else
+          m, c2 = m + 1, c2 + 1
+          kept[m] = -j
+          k2[c2], k2x[c2], k2y[c2], k2vx[c2], k2vy[c2], k2r[c2] = j, x, y, vx, vy,
+            limit * (spp[j] + r2)
+        end
       end
     end
   end
