@@ -229,15 +229,13 @@ end
 -- @treturn number v
 -- @treturn number the mean of the four sides
 function M.centre_and_side(px)
-  local u, v, s = 0, 0, 0
-  for j = 1, 7, 2 do
-    local au, av = px[j], px[j + 1]
-    local k = j < 7 and j + 2 or 1
-    local bu, bv = px[k], px[k + 1]
-    u, v = u + au, v + av
-    s = s + sqrt((bu - au) * (bu - au) + (bv - av) * (bv - av))
-  end
-  return u / 4, v / 4, s / 4
+  -- (written out: the sums in the order of a loop over the corners, from 0)
+  local u1, v1, u2, v2, u3, v3, u4, v4 = px[1], px[2], px[3], px[4], px[5], px[6], px[7], px[8]
+  local du1, dv1, du2, dv2 = u2 - u1, v2 - v1, u3 - u2, v3 - v2
+  local du3, dv3, du4, dv4 = u4 - u3, v4 - v3, u1 - u4, v1 - v4
+  local s = sqrt(du1 * du1 + dv1 * dv1) + sqrt(du2 * du2 + dv2 * dv2)
+    + sqrt(du3 * du3 + dv3 * dv3) + sqrt(du4 * du4 + dv4 * dv4)
+  return (0 + u1 + u2 + u3 + u4) / 4, (0 + v1 + v2 + v3 + v4) / 4, s / 4
 end
 
 --- Assign the detections of a frame to live tracks.
