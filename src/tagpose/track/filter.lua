@@ -13,21 +13,22 @@
 -- 4. **emit**: the kept children become the state, with the posterior of each candidate and
 --    the smoothing numbers.
 --
--- The children live in this module's scratch arrays, one array per quantity, indexed by their
--- slot: slot j holds the two children of the previous state's j-th hypothesis (the last slot,
--- the two new paths), one per candidate. Per slot, what the two children share: `spp, spv, svv`,
--- the per-axis covariance, and `sfrom`, the previous frame's candidate the parent chose (0 for
--- the new paths); per child of the first candidate, `x1, y1` its tilt, `vx1, vy1` its rate,
--- `lw1` its log-weight and `w1` its weight, and of the second `x2, ...`, `w2`. (The children in
--- the order they were made, which breaks the ties of weight, are the first and second of slot
--- 1, then of slot 2, ...: of two children of the same weight, the first candidate's of slot j
--- comes before the second's of slot j' exactly when j <= j'.) A state's `hypotheses` is
--- `tagpose.track.STRIDE` numbers per hypothesis: τx, τy, their rates, the position variance,
--- the position-rate covariance, the rate variance, the log-weight (the state's weights sum to
--- one in probability) and the candidate it chose. Only this module reads or writes it.
+-- The children live in this module's scratch arrays, one per quantity, by slot: slot j holds
+-- the two children of the previous state's j-th hypothesis (the last slot, the new paths).
+-- Per slot `spp, spv, svv` (the per-axis covariance the two share) and `sfrom` (the candidate
+-- the parent chose, 0 for a new path); per child of the first candidate `x1, y1` (tilt), `vx1,
+-- vy1` (rate), `lw1` (log-weight), `w1` (weight), of the second `x2, ..., w2`. Ties of weight
+-- go to the child made first: the first candidate's of slot j before the second's of slot k
+-- exactly when j <= k. A state's `hypotheses` is `tagpose.track.STRIDE` numbers per
+-- hypothesis: τx, τy, their rates, the position variance, the position-rate covariance, the
+-- rate variance, the log-weight (the weights sum to one in probability) and the candidate it
+-- chose. Only this module reads or writes it.
 -- @module tagpose.track.filter
 
+local compat = require("tagpose.core.compat")
+
 local sqrt, exp, log, min, max = math.sqrt, math.exp, math.log, math.min, math.max
+local JIT = compat.jit
 
 local M = {}
 
@@ -110,13 +111,19 @@ local function branch(T, prev, dt, ax, ay, bx, by, has2, r2, half, z1r, z1i, z2r
     local l = lw + half - l1
     if has2 then
       -- the log of the share of the children that choose either candidate, as they lie at e1
-      -- and e2 (their exponents) from the prediction: -log(1 + exp(e1 - e2)) and
-      -- -log(1 + exp(e2 - e1)). (Without a branch, the difference held within ±700 by min
-      -- and max: on LuaJIT a side exit here is a trace that cannot be compiled, and a
-      -- hypothesis far from one candidate takes it often.)
+      -- and e2 (their exponents) from the prediction: -log(1 + exp(e1 - e2)) and -log(1 +
+      -- exp(e2 - e1)), the difference held within ±700: on LuaJIT by min and max (a side exit
+      -- here is a trace that cannot be compiled), on PUC Lua by branches (two calls of C
+      -- functions cost more; the same number, NaN and -0 included)
       local ex, ey = bx - x, by - y
-      local d = min(max((dx * dx + dy * dy) / (2 * s) - (ex * ex + ey * ey) / (2 * s), -700),
-        700)
+      local d = (dx * dx + dy * dy) / (2 * s) - (ex * ex + ey * ey) / (2 * s)
+      if JIT then
+        d = min(max(d, -700), 700)
+      elseif d < -700 then
+        d = -700
+      elseif d > 700 then
+        d = 700
+      end
       local soft = log(1 + exp(d))
       l = l + -soft
       dr, di = z2r - qx, z2i - xy
@@ -143,12 +150,11 @@ local function branch(T, prev, dt, ax, ay, bx, by, has2, r2, half, z1r, z1i, z2r
   return j, top
 end
 
--- The children's weights (relative to the best, `top`) and each candidate's children in order
--- of weight, best first, ties in the order they were made (a stable sort), in `run1` and
--- `run2`: each candidate's children come nearly in order already (their parents are kept best
--- first), so an insertion is quick. Their merge by weight (ties: the child made first) is the
--- order of all the children. For smoothing, the probability of the previous frame's first
--- candidate given each of this frame's. Returns the runs' lengths and the two probabilities.
+-- The children's weights (relative to the best, `top`), each candidate's children in order of
+-- weight, best first, in `run1` and `run2` (insertions, stable: the children come nearly in
+-- order, their parents kept best first; the runs' merge by weight is the order of all the
+-- children), and for smoothing the probability of the previous frame's first candidate given
+-- each of this frame's. Returns the runs' lengths and the two probabilities.
 local function weigh(ns, has2, top, p_prev)
   -- luacheck: push ignore 431
   local lw1, lw2, w1, w2, sfrom, run1, run2 = lw1, lw2, w1, w2, sfrom, run1, run2
@@ -227,10 +233,9 @@ local function consider(j, pick, m, c, limit, r2)
 end
 
 -- The first pass of step 3, best first: the children of a weight that is not zero in doubles,
--- until `room` are kept (`consider` and the merge of the runs written out, once for each
--- candidate: this is the filter's innermost loop). Returns how many of each candidate are
--- kept, and the places in the runs where it stopped (a child before them of a weight above
--- `TINY` was considered).
+-- until `room` are kept (`consider` and the runs' merge written out, once per candidate: the
+-- filter's innermost loop). Returns how many of each candidate are kept and the places in the
+-- runs where it stopped (a child before them of a weight above `TINY` was considered).
 local function first_pass(room, limit, r2, n1, n2)
   -- luacheck: push ignore 431
   local w1, w2, run1, run2, kept, spp = w1, w2, run1, run2, kept, spp
