@@ -73,7 +73,7 @@ local function start(T, out, time, s2, ax, ay, bx, by, r2, has2, ev)
 end
 
 -- Steps 1 and 2: the children of every hypothesis of `prev` and the new paths, into the
--- scratch arrays; returns the slots and the greatest log-weight. (a: the first candidate's
+-- scratch arrays; returns the slots. (a: the first candidate's
 -- measurement, b the second's, r2 their variance, half the frame's evidence halved; z1, z2 the
 -- candidates' tilt vectors squared as complex numbers, rho2 the variance of each of their
 -- parts.)
@@ -83,7 +83,7 @@ local function branch(T, prev, dt, ax, ay, bx, by, has2, r2, half, z1r, z1i, z2r
   local spp, spv, svv, sfrom, x1, y1, vx1, vy1, lw1 = spp, spv, svv, sfrom, x1, y1, vx1, vy1, lw1
   local x2, y2, vx2, vy2, lw2 = x2, y2, vx2, vy2, lw2
   -- luacheck: pop
-  local h, j, q, top = prev.hypotheses, 0, T.PROCESS, -math.huge
+  local h, j, q = prev.hypotheses, 0, T.PROCESS
   local dt2 = dt * dt
   local q1, q2, q3 = q * dt, q * dt2 / 2, q * dt2 * dt / 3
   for o = 0, (prev.count - 1) * 9, 9 do
@@ -130,10 +130,6 @@ local function branch(T, prev, dt, ax, ay, bx, by, has2, r2, half, z1r, z1i, z2r
       x2[j], y2[j], vx2[j], vy2[j] = x + g1 * ex, y + g1 * ey, vx + g2 * ex, vy + g2 * ey
       local l2 = lw - half - (dr * dr + di * di) / (2 * S) + (d - soft)
       lw2[j] = l2
-      if l > top then top = l end
-      if l2 > top then top = l2 end
-    elseif l > top then
-      top = l
     end
     lw1[j] = l
   end
@@ -142,23 +138,24 @@ local function branch(T, prev, dt, ax, ay, bx, by, has2, r2, half, z1r, z1i, z2r
   j = j + 1
   x1[j], y1[j], vx1[j], vy1[j], lw1[j] = ax, ay, 0, 0, base + half
   spp[j], spv[j], svv[j], sfrom[j] = r2, 0, T.RATE, 0
-  if base + half > top then top = base + half end
-  if has2 then
-    x2[j], y2[j], vx2[j], vy2[j], lw2[j] = bx, by, 0, 0, base - half
-    if base - half > top then top = base - half end
-  end
-  return j, top
+  if has2 then x2[j], y2[j], vx2[j], vy2[j], lw2[j] = bx, by, 0, 0, base - half end
+  return j
 end
 
--- The children's weights (relative to the best, `top`), each candidate's children in order of
+-- The children's weights (relative to the best), each candidate's children in order of
 -- weight, best first, in `run1` and `run2` (insertions, stable: the children come nearly in
 -- order, their parents kept best first; the runs' merge by weight is the order of all the
 -- children), and for smoothing the probability of the previous frame's first candidate given
 -- each of this frame's. Returns the runs' lengths and the two probabilities.
-local function weigh(ns, has2, top, p_prev)
+local function weigh(ns, has2, p_prev)
   -- luacheck: push ignore 431
   local lw1, lw2, w1, w2, sfrom, run1, run2 = lw1, lw2, w1, w2, sfrom, run1, run2
   -- luacheck: pop
+  local top = -math.huge
+  for j = 1, ns do
+    if lw1[j] > top then top = lw1[j] end
+    if has2 and lw2[j] > top then top = lw2[j] end
+  end
   local j11, j12, j21, j22 = 0, 0, 0, 0
   local n1, n2, wb = 0, 0, 0
   for j = 1, ns do
@@ -431,9 +428,9 @@ function M.step(T, prev, a, b, size, time, out, llr)
   if not prev or prev.count == 0 then
     pick, p = start(T, out, now, s2, ax, ay, bx, by, r2, has2, ev)
   else
-    local slots, top = branch(T, prev, dt, ax, ay, bx, by, has2, r2, 0.5 * ev, z1r, z1i, z2r,
-      z2i, rho * rho)
-    local n1, n2, back_first, back_second = weigh(slots, has2, top, prev.first)
+    local slots = branch(T, prev, dt, ax, ay, bx, by, has2, r2, 0.5 * ev, z1r, z1i, z2r, z2i,
+      rho * rho)
+    local n1, n2, back_first, back_second = weigh(slots, has2, prev.first)
     local m = merge(T, r2, n1, n2)
     pick, p = emit(out, m, now, s2, back_first, back_second)
     if not (p == p) then
