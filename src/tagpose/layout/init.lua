@@ -19,8 +19,8 @@
 
 local args = require("tagpose.core.args")
 local camera_model = require("tagpose.core.camera")
-local cube = require("tagpose.layout.cube")
-local model = require("tagpose.layout.model")
+local cube = require("tagpose.rigid.cube")
+local model = require("tagpose.rigid.model")
 
 local is_positive, describe, size_of = args.is_positive, args.describe, args.size_of
 
@@ -283,7 +283,7 @@ local DEFAULT_FACES = { [0] = "+x", "-x", "+y", "-y", "+z", "-z" }
 -- faces carry the tags as the lab's blocks do (tag z into the block; on the side faces the
 -- tag upright on an upright block; on the top tag x = +x, tag y = -y; on the bottom tag
 -- x = +x, tag y = +y). Every face's tag frame `R_f` is one of the cube's rotations
--- (`tagpose.layout.cube`), and `X_block = R_f·X_tag + (block_size/2)·n_f`, `n_f` the face's
+-- (`tagpose.rigid.cube`), and `X_block = R_f·X_tag + (block_size/2)·n_f`, `n_f` the face's
 -- outward normal. With `symmetric = true` set on the result, it is the block of
 -- `tagpose.block.solve` whose faces cannot be told apart (its default).
 -- @tparam number|table tag_size side of the tags' black squares; or the sides by tag id,

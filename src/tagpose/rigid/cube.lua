@@ -11,7 +11,7 @@
 -- `G` sits on the face with outward normal `-G·e_z` (`face_of`). Where the tags sit on the
 -- faces is a layout's business: `tagpose.layout.cube` places the standard cube's tags, and a
 -- block is any layout of tags on a cube (`tagpose.block.body`).
--- @module tagpose.layout.cube
+-- @module tagpose.rigid.cube
 
 local rotation = require("tagpose.core.rotation")
 
