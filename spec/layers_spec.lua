@@ -201,6 +201,26 @@ describe("the layers of src/", function()
     assert(not cycle, "a cycle: " .. table.concat(cycle or {}, " -> "))
   end)
 
+  -- what they share is below them: a block is fitted with the rigid-body model, not through the
+  -- layout subsystem's facade
+  it("keep the subsystems of a layer apart: tracker, block, localizer and layout", function()
+    local subsystems = LAYERS[layer_of("tagpose.block")]
+    local function subsystem(name)
+      for _, prefix in ipairs(subsystems) do
+        if name == prefix or name:sub(1, #prefix + 1) == prefix .. "." then return prefix end
+      end
+    end
+    for _, from in ipairs(sorted_keys(edges)) do
+      for _, to in ipairs(sorted_keys(edges[from])) do
+        local a, b = subsystem(from), subsystem(to)
+        if a and b and a ~= b then
+          error(from .. " -> " .. to .. ": " .. a .. " requires " .. b
+            .. ", a subsystem of its own layer: move what they share to a lower layer")
+        end
+      end
+    end
+  end)
+
   it("leave the tools a client of the facade, but for the listed exceptions", function()
     local used = {}
     for _, from in ipairs(sorted_keys(edges)) do

@@ -29,7 +29,6 @@ local compat = require("tagpose.core.compat")
 local rotation = require("tagpose.core.rotation")
 local cube = require("tagpose.rigid.cube")
 local model = require("tagpose.rigid.model")
-local layout = require("tagpose.layout")
 
 local sqrt, abs, acos, deg, rad = math.sqrt, math.abs, math.acos, math.deg, math.rad
 local is_finite, describe, size_of = compat.is_finite, args.describe, args.size_of
@@ -120,7 +119,7 @@ local standard_size, standard_places
 -- symmetric block's tags take their detections' sizes.
 local function standard(block_size, size)
   if block_size ~= standard_size then
-    standard_places = orbit(model.read(layout.cube(size, block_size)), block_size)
+    standard_places = orbit(model.read(cube.layout(size, block_size)), block_size)
     standard_size = block_size
   end
   return standard_places
@@ -302,7 +301,7 @@ function M.new(tag_size, block_size, settings)
           .. " of options.faces and no default"
       end
     end
-    return of_layout(layout.cube(tag_size, block_size, faces), nil, block_size, "options.faces")
+    return of_layout(cube.layout(tag_size, block_size, faces), nil, block_size, "options.faces")
   elseif given then
     return of_layout(given, tag_size, block_size, "options.layout")
   end
