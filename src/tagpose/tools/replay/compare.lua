@@ -13,6 +13,7 @@ local log = require("tagpose.tools.log")
 local stats = require("tagpose.tools.replay.stats")
 local command = require("tagpose.tools.replay.command")
 local frames = require("tagpose.tools.replay.frames")
+local nearest = require("tagpose.tools.replay.nearest")
 
 local sqrt, asin, deg, min, huge = math.sqrt, math.asin, math.deg, math.min, math.huge
 local add, note = stats.add, stats.note
@@ -35,11 +36,6 @@ local function rotation_difference(a, b)
   local dy, dz = a.y / na - s * b.y / nb, a.z / na - s * b.z / nb
   local chord = sqrt(dw * dw + dx * dx + dy * dy + dz * dz)
   return deg(4 * asin(min(1, chord / 2)))
-end
-
-local function distance(p, q)
-  local dx, dy, dz = p.x - q.x, p.y - q.y, p.z - q.z
-  return sqrt(dx * dx + dy * dy + dz * dz)
 end
 
 local Compare = {}
@@ -143,7 +139,7 @@ function Compare:draw_frame(rows, group, taken)
   local left = {}
   for _, row in ipairs(group) do
     if not taken[row] then
-      local list = left[row.tag] or {}
+      local list = left[row.tag] or { next = 1 }
       left[row.tag] = list
       list[#list + 1] = row
     end
@@ -152,8 +148,8 @@ function Compare:draw_frame(rows, group, taken)
     local slot = e.partner and e.partner.slot
     if not slot and not e.drawn then
       local list = left[e.tag]
-      local row = list and table.remove(list, 1)
-      slot = row and row.slot
+      local row = list and list[list.next]
+      if row then list.next, slot = list.next + 1, row.slot end
     end
     self:draw(e, slot)
   end
@@ -168,34 +164,32 @@ end
 function Compare:match(frame, solved, group)
   local rows = self:take(frame)
   if #rows == 0 then return end
-  local by_tag = {}
-  for i, e in ipairs(rows) do
-    if e.pose and not e.used then
-      local list = by_tag[e.tag] or {}
-      by_tag[e.tag] = list
-      list[#list + 1] = i
-    end
-  end
-  local pairs_ = {}
+  -- per tag: the solved rows and this log's rows not yet matched, each in its order
+  local by_tag, tags = {}, {}
   for k, s in ipairs(solved) do
-    for _, i in ipairs(by_tag[s.tag] or {}) do
-      pairs_[#pairs_ + 1] = { d = distance(s.pose.position, rows[i].pose.position), k = k, i = i }
+    local set = by_tag[s.tag]
+    if not set then
+      set = { ks = {}, a = {}, is = {}, b = {} }
+      by_tag[s.tag], tags[#tags + 1] = set, s.tag
+    end
+    set.ks[#set.ks + 1], set.a[#set.a + 1] = k, s.pose.position
+  end
+  for i, e in ipairs(rows) do
+    local set = by_tag[e.tag]
+    if set and e.pose and not e.used then
+      set.is[#set.is + 1], set.b[#set.b + 1] = i, e.pose.position
     end
   end
-  table.sort(pairs_, function(a, b)
-    if a.d ~= b.d then return a.d < b.d end
-    if a.k ~= b.k then return a.k < b.k end
-    return a.i < b.i
-  end)
-  local used, taken = {}, {}
-  for _, p in ipairs(pairs_) do
-    local k, i = p.k, p.i
-    if not used[k] and not rows[i].used then
-      used[k], rows[i].used = true, true
-      rows[i].partner, taken[solved[k]] = solved[k], true
+  local taken = {}
+  for _, tag in ipairs(tags) do
+    local set = by_tag[tag]
+    local ka, kb, ds = nearest.match(set.a, set.b)
+    for p = 1, #ka do
+      local s, e = solved[set.ks[ka[p]]], rows[set.is[kb[p]]]
+      e.used, e.partner, taken[s] = true, s, true
       self.matched = self.matched + 1
-      add(self.dt, p.d)
-      local dr = rotation_difference(solved[k].pose.quaternion, rows[i].pose.quaternion)
+      add(self.dt, ds[p])
+      local dr = rotation_difference(s.pose.quaternion, e.pose.quaternion)
       add(self.dr, dr)
       if dr > M.APART then self.apart = self.apart + 1 end
     end
