@@ -6,7 +6,10 @@
 -- dashed line of `tag 0 #2` is the one that belongs with `tag 0 #2` (the tracks are the
 -- tracker's: the plot has one association). A row matched with no solved row takes the line
 -- of a row of its frame and tag left over (a row that failed), else the line its tag last
--- had in this log, else the first.
+-- had in this log, else the first. On a figure over time, a row is drawn at its frame's time
+-- in the corner log, a frame the corner log does not have at the time interpolated between
+-- the two frames around it (from the last two at the end; before the first, at the frame
+-- rate).
 -- @module tagpose.tools.replay.compare
 
 local log = require("tagpose.tools.log")
@@ -44,20 +47,22 @@ Compare.__index = Compare
 --- Open a pose log to compare with.
 -- @tparam string path
 -- @tparam[opt] table recorder the figure's `plot.recorder`, to draw the log on
+-- @tparam[opt=30] number fps the frame rate, for the time of a row before the corner log's
+--   first frame on a figure over time
 -- @treturn table the log: `path`, `matched` (rows matched), `dt` and `dr` (histograms of the
 --   position and rotation differences), `apart` (rows matched whose rotations are more than
 --   `APART` degrees apart: against a truth file, the wrong rows), `problems` (a tally of its
 --   malformed rows),
 --   `out_of_order`, `first_out_of_order`; `match(frame, solved[, group])`, `finish()`
 -- @return nil, string when it cannot be read
-function M.open(path, recorder)
+function M.open(path, recorder, fps)
   local reader, err = log.pose_reader(path)
   if not reader then return nil, err:find(path, 1, true) and err or path .. ": " .. err end
   local label = command.basename(path):gsub("%.csv$", "")
   local self = setmetatable({ path = path, reader = reader, source = recorder and
     recorder:source(label), recorder = recorder, last_slot = {}, slotted = 0,
     problems = stats.tally(), dt = stats.histogram(), dr = stats.histogram(), matched = 0,
-    apart = 0,
+    apart = 0, fps = fps or 30, times = {},
     frame = nil, rows = {}, last = nil, out_of_order = 0, first_out_of_order = nil,
     lookahead = nil, done = false }, Compare)
   return self
@@ -95,7 +100,18 @@ function Compare:draw(e, slot)
     end
     last[e.tag] = slot
   end
-  self.recorder:add(self.source, e.tag, slot or last[e.tag] or 1, e.frame, e.pose)
+  self.recorder:add(self.source, e.tag, slot or last[e.tag] or 1, e.frame, e.pose, nil,
+    self:time_of(e.frame))
+end
+
+-- the time of a frame: the corner log's, else interpolated between the last two frames it
+-- gave (before its first, at the frame rate); nil before any
+function Compare:time_of(frame)
+  local t = self.times
+  if not t.f1 then return nil end
+  if frame == t.f1 then return t.t1 end
+  if t.f0 then return t.t0 + (frame - t.f0) * (t.t1 - t.t0) / (t.f1 - t.f0) end
+  return t.t1 + (frame - t.f1) / self.fps
 end
 
 -- consume the rows before `frame`, drawing them
@@ -161,7 +177,12 @@ end
 -- @tparam {table,...} solved
 -- @tparam[opt] {table,...} group every row of the frame (solved or not), for the lines of the
 --   rows matched with none
-function Compare:match(frame, solved, group)
+-- @tparam[opt] number time the frame's time (s), for a figure over time
+function Compare:match(frame, solved, group, time)
+  local t = self.times
+  if time ~= nil and frame ~= t.f1 then
+    t.f0, t.t0, t.f1, t.t1 = t.f1, t.t1, frame, time
+  end
   local rows = self:take(frame)
   if #rows == 0 then return end
   -- per tag: the solved rows and this log's rows not yet matched, each in its order
