@@ -139,6 +139,13 @@ local function start_buckets(s)
   return w
 end
 
+-- the first n values of an array, in a new one
+local function copy(a, n)
+  local b = {}
+  for i = 1, n do b[i] = a[i] end
+  return b
+end
+
 -- turn an exact series into buckets (w nil), or double their width (w the new width)
 local function rebucket(s, w)
   local nv = s.nc
@@ -161,10 +168,10 @@ local function rebucket(s, w)
       end
     end
   end
-  for i = n + 1, s.n do
-    x[i], index[i] = nil, nil
-    for c = 1, nv do s.mn[c][i], s.mx[c][i] = nil, nil end
-  end
+  -- the arrays copied at their new length: emptied in place they would keep the room of
+  -- max_points + 1 values (a table's array part does not shrink), twice what they fill
+  s.x, s.index = copy(x, n), copy(index, n)
+  for c = 1, nv do s.mn[c], s.mx[c] = copy(s.mn[c], n), copy(s.mx[c], n) end
   s.n = n
 end
 
@@ -348,6 +355,19 @@ function Recorder:add(source, tag, slot, frame, pose, confidence, time)
   if n > s.max_points then rebucket(s) end
 end
 
+-- the centres of a bucketed series' buckets, and the same twice each if made already: made
+-- once for every panel that draws the series (until it changes)
+local function centres_of(s)
+  local c = s.centres
+  if c and c.n == s.n and c.width == s.width and c.origin == s.origin then
+    return c.twice, c.x
+  end
+  local x = {}
+  for i = 1, s.n do x[i] = s.origin + (s.index[i] + 0.5) * s.width end
+  s.centres = { n = s.n, width = s.width, origin = s.origin, x = x }
+  return nil, x
+end
+
 --- The x and y arrays a panel draws of a series, value c (a bucket as its minimum and
 -- maximum at its centre, in alternating order so that the line fills the envelope).
 -- @tparam table s
@@ -356,14 +376,18 @@ end
 -- @treturn {number,...} y
 function M.series_xy(s, c)
   if not s.width then return s.x, s.v[c] end
-  local xs, ys = {}, {}
+  local xs, centres = centres_of(s)
+  local ys = {}
   local mn, mx = s.mn[c], s.mx[c]
   for i = 1, s.n do
-    local xc = s.origin + (s.index[i] + 0.5) * s.width
     local a, b = mn[i], mx[i]
     if i % 2 == 0 then a, b = b, a end
-    xs[2 * i - 1], ys[2 * i - 1] = xc, a
-    xs[2 * i], ys[2 * i] = xc, b
+    ys[2 * i - 1], ys[2 * i] = a, b
+  end
+  if not xs then
+    xs = {}
+    for i = 1, s.n do xs[2 * i - 1], xs[2 * i] = centres[i], centres[i] end
+    s.centres.twice = xs
   end
   return xs, ys
 end
@@ -380,9 +404,8 @@ function M.band_xy(s, c)
   local b = nv + 1 + c
   if s.nc < b then return nil end
   if s.width then
-    local xs = {}
-    for i = 1, s.n do xs[i] = s.origin + (s.index[i] + 0.5) * s.width end
-    return xs, s.mn[b], s.mx[b]
+    local _, centres = centres_of(s)
+    return centres, s.mn[b], s.mx[b]
   end
   local lo, hi = {}, {}
   local v, d = s.v[c], s.v[b]

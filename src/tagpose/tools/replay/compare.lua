@@ -53,7 +53,7 @@ Compare.__index = Compare
 --   position and rotation differences), `apart` (rows matched whose rotations are more than
 --   `APART` degrees apart: against a truth file, the wrong rows), `problems` (a tally of its
 --   malformed rows),
---   `out_of_order`, `first_out_of_order`; `match(frame, solved[, group])`, `finish()`
+--   `out_of_order`, `first_out_of_order`; `match(frame, solved[, group[, time]])`, `finish()`
 -- @return nil, string when it cannot be read
 function M.open(path, recorder, fps)
   local reader, err = log.pose_reader(path)
