@@ -10,7 +10,8 @@
 -- are taken out; positions given more than once are one leaf of the tree, whose indices are
 -- taken in increasing order. The distances are computed as the caller's `sqrt(dx^2 + dy^2 +
 -- dz^2)`, and the tree prunes a branch only when its plane is farther than the best (never on
--- an equal distance), so that the result is the greedy matching's exactly.
+-- an equal distance), so that the result is the greedy matching's exactly. A few positions
+-- (at most `SMALL` pairs) are matched by listing every pair.
 -- @module tagpose.tools.replay.nearest
 
 local sqrt, floor, huge, sort = math.sqrt, math.floor, math.huge, table.sort
@@ -140,6 +141,36 @@ local function remove(tree, i)
   tree.n = tree.n - 1
 end
 
+-- the pairs in order: distance, then index in a, then in b
+local function before(u, v)
+  if u[1] ~= v[1] then return u[1] < v[1] end
+  if u[2] ~= v[2] then return u[2] < v[2] end
+  return u[3] < v[3]
+end
+
+-- the matching of a few positions (na x nb at most SMALL pairs) by its definition: every pair
+-- in order, each position taken once
+local function by_every_pair(a, b, ka, kb, ds)
+  local all = {}
+  for i = 1, #a do
+    for j = 1, #b do all[#all + 1] = { distance(a[i], b[j]), i, j } end
+  end
+  sort(all, before)
+  local used_a, used_b = {}, {}
+  for _, e in ipairs(all) do
+    local i, j = e[2], e[3]
+    if not used_a[i] and not used_b[j] then
+      used_a[i], used_b[j] = true, true
+      ka[#ka + 1], kb[#kb + 1], ds[#ds + 1] = i, j, e[1]
+    end
+  end
+  return ka, kb, ds
+end
+
+--- Most pairs matched by listing every pair (the common frame of a tag or two, where a tree
+-- costs more than it saves).
+M.SMALL = 16
+
 --- Match two sets of positions nearest first.
 -- @tparam {table,...} a positions `{x =, y =, z =}` (finite numbers)
 -- @tparam {table,...} b positions
@@ -149,6 +180,8 @@ end
 function M.match(a, b)
   local ka, kb, ds = {}, {}, {}
   if #a == 0 or #b == 0 then return ka, kb, ds end
+  if #a == 1 and #b == 1 then return { 1 }, { 1 }, { distance(a[1], b[1]) } end
+  if #a * #b <= M.SMALL then return by_every_pair(a, b, ka, kb, ds) end
   local trees = { tree_of(a), tree_of(b) }
   local sets = { a, b }
   -- the chain: side (1: a, 2: b) and index of each link, each link's nearest the next
