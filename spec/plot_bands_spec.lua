@@ -5,6 +5,7 @@
 -- say: the position's deviations as given, the rotation's carried to the quaternion and to
 -- roll, pitch and yaw by finite differences of turned rotations, written out here.
 local plot = require("tagpose.tools.plot")
+local geometry = require("support.geometry")
 local run = require("support.run")
 
 local sqrt, sin, cos, asin = math.sqrt, math.sin, math.cos, math.asin
@@ -14,13 +15,6 @@ local function tmp(name)
   local base = os.tmpname()
   os.remove(base)
   return base .. "-" .. name
-end
-
--- the SVG text of one panel
-local function panel(svg, name)
-  local i = assert(svg:find('<g class="panel" id="panel-' .. name .. '"', 1, true), name)
-  local j = svg:find('<g class="panel"', i + 1, true) or #svg
-  return svg:sub(i, j - 1)
 end
 
 -- the vertical axis of a panel: the pixel of a value (from its first and last y ticks)
@@ -64,19 +58,11 @@ local function band_points(text, source)
   return out
 end
 
--- Hamilton product
-local function qmul(a, b)
-  return { a[1] * b[1] - a[2] * b[2] - a[3] * b[3] - a[4] * b[4],
-    a[1] * b[2] + a[2] * b[1] + a[3] * b[4] - a[4] * b[3],
-    a[1] * b[3] - a[2] * b[4] + a[3] * b[1] + a[4] * b[2],
-    a[1] * b[4] + a[2] * b[3] - a[3] * b[2] + a[4] * b[1] }
-end
-
 -- q turned by the rotation vector r on the left (camera frame): exp(r) q
 local function turned(q, r)
   local a = sqrt(r[1] ^ 2 + r[2] ^ 2 + r[3] ^ 2)
   local s = a > 0 and sin(a / 2) / a or 0.5
-  return qmul({ cos(a / 2), s * r[1], s * r[2], s * r[3] }, q)
+  return geometry.qmul({ cos(a / 2), s * r[1], s * r[2], s * r[3] }, q)
 end
 
 -- roll, pitch, yaw (degrees) of R = Rz(yaw) Ry(pitch) Rx(roll), from the matrix of q
@@ -109,7 +95,7 @@ end
 -- the bands do not read: the log has the deviations only)
 local function pose_at(k, d)
   local a, b = 0.3 + 0.01 * k, -0.4
-  local q = qmul({ cos(a / 2), 0, sin(a / 2), 0 }, { cos(b / 2), sin(b / 2), 0, 0 })
+  local q = geometry.qmul({ cos(a / 2), 0, sin(a / 2), 0 }, { cos(b / 2), sin(b / 2), 0, 0 })
   local cov = {}
   for i = 1, 6 do
     cov[i] = { 0, 0, 0, 0, 0, 0 }
@@ -142,7 +128,7 @@ end
 
 -- each band point of a panel against the value and deviation expected at its frame
 local function check_band(svg, name, expected)
-  local text = panel(svg, name)
+  local text = run.panel(svg, name)
   local y_of, per_unit = y_axis(text)
   local frame_of = x_axis(text)
   local points = band_points(text, "poses")
@@ -199,7 +185,7 @@ describe("tagpose.tools.plot", function()
         rec:add(src, 1, 1, k, pose)
       end
       local svg = plot.draw(rec)
-      local text = panel(svg, "x")
+      local text = run.panel(svg, "x")
       local y_of = y_axis(text)
       local top, bottom = math.huge, -math.huge
       local points = band_points(text, "long")
@@ -222,7 +208,7 @@ describe("tagpose.tools.plot", function()
     it("draws the confidence in a strip under the position, only when a pose has one", function()
       local svg, shown = draw_poses()
       assert.equal(8, shown.panels)
-      local text = panel(svg, "confidence")
+      local text = run.panel(svg, "confidence")
       assert.truthy(text:find(('height="%.1f"'):format(plot.STRIP_HEIGHT), 1, true))
       local y_of = y_axis(text)
       local frame_of = x_axis(text)
@@ -258,7 +244,7 @@ describe("tagpose.tools.plot", function()
         end
         local svg = plot.draw(rec)
         assert.truthy(svg:find(">time %(s%) from 1700000000<"))
-        local text = panel(svg, "x")
+        local text = run.panel(svg, "x")
         local t_of = x_axis(text)
         local runs = {}
         for pts in text:gmatch('<polyline points="([^"]*)"') do
@@ -310,7 +296,7 @@ describe("bin/tagpose-replay --svg", function()
       assert.truthy(figure:find('class="axis%-label"[^>]*>time %(s%)<'))
       -- tag 1's truth, every frame 0..19: at its frame's time, odd frames between their
       -- neighbours' times (frame 19, after the log's last, from frames 16 and 18)
-      local x = panel(figure, "x")
+      local x = run.panel(figure, "x")
       local t_of = x_axis(x)
       local group = x:match('<g class="series" data%-tag="1" data%-source="[^"]*truth"'
         .. '[^>]*>(.-)</g>')
