@@ -49,7 +49,7 @@ local log = require("tagpose.tools.log")
 local rotation = require("tagpose.core.rotation")
 local uncertainty = require("tagpose.uncertainty")
 local refine = require("tagpose.core.refine")
-local cube = require("tagpose.layout.cube")
+local cube = require("tagpose.rigid.cube")
 
 local sqrt, abs, floor, deg = math.sqrt, math.abs, math.floor, math.deg
 local atan2 = require("tagpose.core.compat").atan2
