@@ -23,7 +23,7 @@
 --
 -- The branch probability (`assess`) is cheap: the factors of each H and one quadratic form
 -- each. A covariance costs a full inverse and its table. This module is loaded on demand: a
--- pose's `confidence` and `covariance` are made when first read (`tagpose.core.result`).
+-- pose's `confidence` and `covariance` are made when first read (`tagpose.result.pose`).
 -- @module tagpose.uncertainty
 
 local compat = require("tagpose.core.compat")
