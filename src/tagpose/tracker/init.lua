@@ -33,14 +33,14 @@ local args = require("tagpose.core.args")
 local camera_model = require("tagpose.core.camera")
 local compat = require("tagpose.core.compat")
 local pipeline = require("tagpose.core.pipeline")
-local result = require("tagpose.core.result")
+local result = require("tagpose.result")
 local solvequad = require("tagpose.core.solvequad")
 local track = require("tagpose.track")
 local tracks = require("tagpose.tracker.tracks")
 local associate = require("tagpose.tracker.associate")
 local smooth = require("tagpose.tracker.smooth")
 
-local sqrt = math.sqrt
+local finish = result.finish
 local centre_and_side = associate.centre_and_side
 local is_finite, describe, size_of = compat.is_finite, args.describe, args.size_of
 
@@ -148,9 +148,13 @@ local function read_options(self, options)
   end
   self.opencv = opencv
   self.seed, self.max_gap, self.max_tracks = method == "seed", max_gap, max_tracks
-  self.sigma2 = sigma and sigma * sigma or nil
   self.recording = options.smooth == true
   if self.recording then self.recorded = {} end
+  -- what the end of every solve is told (`tagpose.result`): the tracker's own, σ² for the
+  -- covariance included, which also keeps the noise measured on its tracks so far
+  local ctx = result.context(self.work)
+  ctx.seed, ctx.sigma2, ctx.in_place = self.seed, sigma and sigma * sigma or false, true
+  self.context = ctx
 end
 
 --- A tracker for one camera.
@@ -252,37 +256,21 @@ local function solve(self, i, t, size, time)
   local half, camera = 0.5 * size, self.camera
   local ok, why = pipeline.prepare(w, camera)
   if not ok then return nil, why end
+  local state = false -- the track's filter state (none with the report's method)
   if self.seed then
     ok, why = pipeline.seed(w, half, solvequad.TOLERANCE, solvequad.MAX_ITERATIONS)
-    if not ok then return nil, why end
-    local err
-    err, why = pipeline.finish_seed(w, camera, half)
-    if not err then return nil, why end
-    return result.new(w.first, err, nil, nil, w.iterations, nil, nil, camera, half, self.sigma2,
-      self.ss[i], time), 1, 0.5, 0.5
+  else
+    ok, why = pipeline.refined(w, half, pipeline.REFINED_TOLERANCE, solvequad.MAX_ITERATIONS)
+    state = t and t.state or track.new_state()
   end
-  ok, why = pipeline.refined(w, half, pipeline.REFINED_TOLERANCE, solvequad.MAX_ITERATIONS)
-  if ok then ok, why = pipeline.finite(w) end
   if not ok then return nil, why end
-  local a, b = w.first, w.count == 2 and w.second or nil
-  local ea, eb = sqrt(a.sse / 4), b and sqrt(b.sse / 4)
-  local state = t and t.state or track.new_state()
-  local started = state.count == 0
-  -- a new track starts from the noise the tracker measured on its tracks so far (none: the
-  -- single-frame default)
-  if started then state.sigma2, state.dof = self.noise or 0, self.noise_dof or 0 end
-  local pick, p = track.step(state, a, b, self.ss[i], time, state)
-  if pick == 2 then a, b, ea, eb = b, a, eb, ea end
-  self.noise, self.noise_dof = track.noise(self.noise or 0, self.noise_dof or 0, a.sse)
-  -- σ² for the covariance: the tracker's σ, else what the track's running estimate with this
-  -- frame says of it (a track's first frame: the tracker's estimate pooled with the frame, the
-  -- single frame's default on the tracker's first); a track's first confidence is the single
-  -- frame's at that σ², after that the filter's posterior
-  local sigma2 = self.sigma2 or track.noise_mean(state.sigma2, state.dof)
-  local r = result.new(a, ea, b, eb, w.iterations, w.linearisations, b and b.linearisations,
-    camera, half, sigma2, self.ss[i], time)
-  if b and not started then result.set_confidence(r, track.confidence(p)) end
-  return r, state.first, state.back_first, state.back_second, state
+  local ctx = self.context
+  ctx.camera, ctx.half, ctx.side, ctx.time, ctx.prior = camera, half, self.ss[i], time, state
+  local p
+  p, why = finish(ctx)
+  if not p then return nil, why end
+  if not state then return p, 1, 0.5, 0.5 end
+  return p, state.first, state.back_first, state.back_second, state
 end
 
 -- Continue track t with entry i (seen at `time`), or start a new track; returns it.
