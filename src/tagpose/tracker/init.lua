@@ -19,8 +19,9 @@
 --   points) is skipped and reported with a reason, never raised: a detector's glitch never
 --   stops the robot.
 --
--- The tracker keeps its own state for every track (the filter's, the image position): the
--- poses it returns are the caller's to keep or change. With `options.smooth`, it also keeps
+-- The tracker keeps its own state for every track (the filter's, the image position) and its
+-- own copy of the camera, as it was at `new`: the poses it returns are the caller's to keep or
+-- change, and so is the camera table. With `options.smooth`, it also keeps
 -- four numbers per detection so that `tracker:smooth()` can revise every choice with the
 -- evidence of the later frames (`tagpose.tracker.smooth`): for replaying a recorded log.
 --
@@ -72,6 +73,20 @@ end
 -- the call the corner-order hint names
 local CALL = "tagpose.tracker.new(camera, tag_size, options)"
 
+
+-- The tracker's own copy of a checked camera, its distortion table copied too.
+local function copy_camera(camera)
+  local copy = {}
+  for k, v in pairs(camera) do copy[k] = v end
+  copy.fx, copy.fy, copy.cx, copy.cy = camera.fx, camera.fy, camera.cx, camera.cy
+  copy.model, copy.distortion = camera.model, camera.distortion
+  local d = camera.distortion
+  if type(d) == "table" then
+    copy.distortion = {}
+    for k, v in pairs(d) do copy.distortion[k] = v end
+  end
+  return copy
+end
 
 -- What is wrong with a tag_size argument, or nil.
 local function check_sizes(tag_size)
@@ -134,6 +149,7 @@ local function read_options(self, options)
   self.opencv = opencv
   self.seed, self.max_gap, self.max_tracks = method == "seed", max_gap, max_tracks
   self.recording = options.smooth == true
+  if self.recording then self.recorded = {} end
   -- what the end of every solve is told (`tagpose.result`): the tracker's own, σ² for the
   -- covariance included, which also keeps the noise measured on its tracks so far
   local ctx = result.context(self.work)
@@ -143,7 +159,8 @@ end
 
 --- A tracker for one camera.
 -- @tparam table camera `{fx =, fy =, cx =, cy =}` (pixels; optionally `distortion`, `model`),
---   as for `tagpose.solve`
+--   as for `tagpose.solve`; the tracker keeps a copy (a camera changed afterwards needs a new
+--   tracker)
 -- @tparam number|table tag_size side of the tags' black square, or a table
 --   `{[id] = size, default = size}` (a detection whose id has no size, and no default, is
 --   skipped with a reason)
@@ -173,13 +190,14 @@ function M.new(camera, tag_size, options)
   problem = check_sizes(tag_size)
   if problem then raise(2, "new", problem) end
   local self = setmetatable({
-    camera = camera,
+    camera = copy_camera(camera),
     tag_size = tag_size,
+    size = type(tag_size) ~= "table" and tag_size or nil, -- the size of every id, if one
     next_track = 1, -- the next track id (never reused)
     rows = 0, -- detections fed so far
     work = pipeline.new(), -- the pipeline's workspace
-    -- per entry of a frame (reused): id, centre, side, corners (flat)
-    ids = {}, us = {}, vs = {}, ss = {}, pxs = {}, match = {},
+    -- per entry of a frame (reused): id, centre, side, corners (flat), why it is malformed
+    ids = {}, us = {}, vs = {}, ss = {}, pxs = {}, why = {}, match = {},
   }, Tracker)
   read_options(self, options)
   self:reset()
@@ -272,34 +290,27 @@ local function advance(self, i, id, t, time)
     t.dv = (1 - m) * t.dv + m * (v - t.v) / dt
   end
   t.u, t.v, t.side, t.time = u, v, self.ss[i], time
-  tracks.touch(self.live, t)
+  if self.live.newest ~= t then tracks.touch(self.live, t) end
   return t, false
 end
 
--- Entry i of the frame, well formed, continuing track t (or nil): its entry of the result (and
--- with a pose, its smoothing record). False when it is skipped (no tag size for its id).
-local function detection(self, i, id, t, time, row, entry)
-  local size = size_of(self.tag_size, id)
-  if not size then
-    entry.reason = "tracker: no tag size for id " .. tostring(id)
-    return false
-  end
-  local w, px = self.work, self.pxs[i]
-  for k = 1, 8 do w.px[k] = px[k] end
+-- Entry i of the frame, well formed (its id), continuing track t (or nil): the number of its
+-- track, true when the track starts here, and its pose or the reason it has none (with a
+-- pose, its smoothing record is kept); no track for an id without a tag size (skipped).
+local function detection(self, i, id, t, time, row)
+  local size = self.size or size_of(self.tag_size, id)
+  if not size then return nil, nil, nil, "tracker: no tag size for id " .. tostring(id) end
+  -- (the pipeline reads the corners where read_entry put them)
+  self.work.px = self.pxs[i]
   local p, first, a, b, state -- (none when only assigning tracks)
   if self.solving then p, first, a, b, state = solve(self, i, t, size, time) end
   local new
   t, new = advance(self, i, id, t, time)
   if state then t.state = state end
-  entry.track, entry.new = t.number, new
-  if p then
-    entry.pose = p
-    if self.recording then smooth.record(self.recorded, row, t.row, first, a, b) end
-    t.row = row
-  else
-    entry.reason = args.name_order(first, CALL)
-  end
-  return true
+  if not p then return t.number, new, nil, args.name_order(first, CALL) end
+  if self.recording then smooth.record(self.recorded, row, t.row, first, a, b) end
+  t.row = row
+  return t.number, new, p, nil
 end
 
 -- A time step that looks like milliseconds or frame numbers: steps beyond max_gap at a
@@ -331,11 +342,9 @@ local function feed(self, detections, time, fname, solving)
   if time ~= nil and not is_finite(time) then
     args.raise(2, fname, "finite number expected for time, got " .. describe(time), 3)
   end
-  local problem = camera_model.check(self.camera)
-  if problem then args.raise(0, fname, "the tracker's camera was changed: " .. problem, 3) end
   self.solving = solving
   -- (room for one entry, the common frame, made with the array: filled key by key a table's
-  -- parts grow through a resize at each power of two; the entries are made with all their keys)
+  -- parts grow through a resize at each power of two; each entry is made whole, at once)
   local seen = { nil, skipped = 0 }
   if time == nil then time = (self.time or 0) + track.FRAME end
   if self.time and time < self.time then
@@ -350,30 +359,33 @@ local function feed(self, detections, time, fname, solving)
   end
   self.time = time
   self.frames = self.frames + 1
-  tracks.expire(self.live, time, self.max_gap)
+  local live = self.live
+  local oldest = live.oldest
+  if oldest and time - oldest.time > self.max_gap then tracks.expire(live, time, self.max_gap) end
   local n = #detections
   local base = self.rows
   self.rows = base + n
-  if self.recording and not self.recorded then self.recorded = {} end
+  local ids, why = self.ids, self.why
+  for i = 1, n do why[i] = read_entry(self, detections[i], i) end
+  local match = associate.assign(live, n, ids, self.us, self.vs, self.ss, time, M.GATE,
+    self.match, self.frames)
+  local skipped, recording = 0, self.recording
   for i = 1, n do
-    local det = detections[i]
-    local why = read_entry(self, det, i)
-    local id = nil
-    if type(det) == "table" and det.id == det.id then id = det.id end
-    seen[i] = { index = i, id = id, track = nil, new = nil, pose = nil, reason = why }
-  end
-  local match = associate.assign(self.live, n, self.ids, self.us, self.vs, self.ss, time,
-    M.GATE, self.match, self.frames)
-  for i = 1, n do
-    local entry, id = seen[i], self.ids[i]
-    local tracked = id ~= nil and detection(self, i, id, match[i], time, base + i, entry)
-    if not tracked then seen.skipped = seen.skipped + 1 end
-    -- (a row without a pose: malformed, skipped, or no pose from its corners)
-    if self.recording and not entry.pose then
-      smooth.record(self.recorded, base + i, 0, -1, 0.5, 0.5)
+    local id, number, new, pose, reason = ids[i], nil, nil, nil, why[i]
+    if id ~= nil then
+      number, new, pose, reason = detection(self, i, id, match[i], time, base + i)
+    else
+      local det = detections[i]
+      if type(det) == "table" and det.id == det.id then id = det.id end
     end
+    -- (skipped: malformed, or no tag size for its id)
+    if number == nil then skipped = skipped + 1 end
+    seen[i] = { index = i, id = id, track = number, new = new, pose = pose, reason = reason }
+    -- (a row without a pose: malformed, skipped, or no pose from its corners)
+    if recording and not pose then smooth.record(self.recorded, base + i, 0, -1, 0.5, 0.5) end
   end
-  tracks.evict(self.live, self.max_tracks)
+  seen.skipped = skipped
+  if live.count > self.max_tracks then tracks.evict(live, self.max_tracks) end
   return seen
 end
 
