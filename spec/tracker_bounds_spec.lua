@@ -165,3 +165,45 @@ describe("tagpose.tracker bounds", function()
       for k = 0, 5 do assert.is_nil(tr:update({ d }, 0.033 * k).warning) end
     end)
 end)
+
+describe("tracker's camera", function()
+  -- the pose's position error for a tag at pose (r, t) seen through `seen_by`, tracked by tr
+  local function error_of(tr, seen_by, r, t, time)
+    local px = assert(geometry.project(seen_by, r, t, SIZE))
+    local seen = tr:update({ { id = 3, corners = px } }, time)
+    local p = assert(seen[1].pose, seen[1].why)
+    local e = 0
+    for k, key in ipairs({ "x", "y", "z" }) do e = math.max(e, math.abs(p.position[key] - t[k])) end
+    return e
+  end
+
+  it("is the caller's: one recalibrated in place (intrinsics, distortion) is followed", function()
+    local cam = { fx = 600, fy = 600, cx = 320, cy = 240, distortion = { k1 = 0.02 } }
+    local tr = tagpose.tracker.new(cam, SIZE)
+    local r, t = geometry.random_pose(nil, cam, SIZE, { width = 60, tilt = 0.5, azimuth = 0.3,
+      roll = 0.2, u = 300, v = 220 })
+    for k = 0, 2 do assert.is_true(error_of(tr, cam, r, t, k / 30) < 1e-9) end
+    -- the caller's table changed: the corners are now what the new camera sees
+    cam.fx, cam.fy = 900, 900
+    assert.is_true(error_of(tr, cam, r, t, 3 / 30) < 1e-9)
+    cam.distortion.k1 = -0.05
+    assert.is_true(error_of(tr, cam, r, t, 4 / 30) < 1e-9)
+    cam.distortion = nil
+    assert.is_true(error_of(tr, cam, r, t, 5 / 30) < 1e-9)
+  end)
+
+  it("changed into one a solve refuses raises at the caller's update", function()
+    local cam = { fx = 600, fy = 600, cx = 320, cy = 240 }
+    local tr = tagpose.tracker.new(cam, SIZE)
+    local r, t = geometry.random_pose(nil, cam, SIZE, { width = 60, tilt = 0.5, azimuth = 0.3,
+      roll = 0.2, u = 300, v = 220 })
+    local px = assert(geometry.project(cam, r, t, SIZE))
+    tr:update({ { id = 3, corners = px } }, 0)
+    cam.fx = -1
+    local ok, err = pcall(function() tr:update({ { id = 3, corners = px } }, 1 / 30) end)
+    assert.is_false(ok)
+    assert.matches("bad argument #0 to 'update'", err, 1, true)
+    assert.matches("camera was changed", err, 1, true)
+    assert.matches("tracker_bounds_spec.lua", err, 1, true)
+  end)
+end)

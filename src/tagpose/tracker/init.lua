@@ -20,10 +20,11 @@
 --   stops the robot.
 --
 -- The tracker keeps its own state for every track (the filter's, the image position) and its
--- own copy of the camera, as it was at `new`: the poses it returns are the caller's to keep or
--- change, and so is the camera table. With `options.smooth`, it also keeps
--- four numbers per detection so that `tracker:smooth()` can revise every choice with the
--- evidence of the later frames (`tagpose.tracker.smooth`): for replaying a recorded log.
+-- own copy of the camera, compared with the caller's at each frame (a camera changed is checked
+-- again and followed): the poses it returns are the caller's to keep or change. With
+-- `options.smooth`, it also keeps four numbers per detection so that `tracker:smooth()` can
+-- revise every choice with the evidence of the later frames (`tagpose.tracker.smooth`): for
+-- replaying a recorded log.
 --
 -- Times are in seconds (times that look like milliseconds are said once on standard error,
 -- and in `warning`); pixels as the camera's; lengths in the unit of the tag size.
@@ -73,20 +74,6 @@ end
 -- the call the corner-order hint names
 local CALL = "tagpose.tracker.new(camera, tag_size, options)"
 
-
--- The tracker's own copy of a checked camera, its distortion table copied too.
-local function copy_camera(camera)
-  local copy = {}
-  for k, v in pairs(camera) do copy[k] = v end
-  copy.fx, copy.fy, copy.cx, copy.cy = camera.fx, camera.fy, camera.cx, camera.cy
-  copy.model, copy.distortion = camera.model, camera.distortion
-  local d = camera.distortion
-  if type(d) == "table" then
-    copy.distortion = {}
-    for k, v in pairs(d) do copy.distortion[k] = v end
-  end
-  return copy
-end
 
 -- What is wrong with a tag_size argument, or nil.
 local function check_sizes(tag_size)
@@ -190,7 +177,8 @@ function M.new(camera, tag_size, options)
   problem = check_sizes(tag_size)
   if problem then raise(2, "new", problem) end
   local self = setmetatable({
-    camera = copy_camera(camera),
+    camera = camera_model.copy(camera), -- what the solves use
+    given = camera, -- the caller's camera, compared with the copy at each frame
     tag_size = tag_size,
     size = type(tag_size) ~= "table" and tag_size or nil, -- the size of every id, if one
     next_track = 1, -- the next track id (never reused)
@@ -341,6 +329,13 @@ local function feed(self, detections, time, fname, solving)
   if args.is_detection(detections) then args.raise(1, fname, args.ONE_DETECTION, 3) end
   if time ~= nil and not is_finite(time) then
     args.raise(2, fname, "finite number expected for time, got " .. describe(time), 3)
+  end
+  local given = self.given
+  if not camera_model.same(given, self.camera) then
+    -- the caller changed the camera: checked as at new, and followed
+    local problem = camera_model.check(given)
+    if problem then args.raise(0, fname, "the tracker's camera was changed: " .. problem, 3) end
+    self.camera = camera_model.copy(given)
   end
   self.solving = solving
   -- (room for one entry, the common frame, made with the array: filled key by key a table's
