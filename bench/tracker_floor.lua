@@ -1,11 +1,11 @@
 -- What tracker:update costs beyond its arithmetic: the rows of a sequences set (one detection a
 -- frame) fed to tagpose.tracker, beside the same frames run through the work a tracked frame
--- cannot do without — the corners read, the pipeline's refined solve, the tracking filter's
--- step and noise estimate, the result and its confidence, as the tracker's own solve calls them
--- — with none of the tracker's bookkeeping (its argument checks, camera check, entries,
--- association, track records, expiry), and a plain solve of the same rows. Prints, per round,
--- µs per row of each and the ratios to the plain solve: the floor's ratio is what
--- tracker:update would cost with its bookkeeping free.
+-- cannot do without — the corners read, the pipeline's refined solve, and the end of the solve
+-- (tagpose.result.finish: the tracking filter's step and noise estimate, the result and its
+-- confidence) as the tracker's own solve calls them — with none of the tracker's bookkeeping
+-- (its argument checks, camera check, entries, association, track records, expiry), and a
+-- plain solve of the same rows. Prints, per round, µs per row of each and the ratios to the
+-- plain solve: the floor's ratio is what tracker:update would cost with its bookkeeping free.
 --
 --   lua5.4 bench/tracker_floor.lua [SEQUENCES_DIR] [ROUNDS]   (default bench/dev/sequences, 3)
 --
@@ -16,7 +16,7 @@ package.path = "./src/?.lua;./src/?/init.lua;" .. package.path
 local tagpose = require("tagpose")
 local args = require("tagpose.core.args")
 local pipeline = require("tagpose.core.pipeline")
-local result = require("tagpose.core.result")
+local result = require("tagpose.result")
 local solvequad = require("tagpose.core.solvequad")
 local track = require("tagpose.track")
 local associate = require("tagpose.tracker.associate")
@@ -27,7 +27,7 @@ local camera, info = assert(log.read_camera(dir .. "/camera.lua"))
 local rows = assert(log.read_corners(dir .. "/corners.csv"))
 local n, size = #rows, info.tag_size
 local half = 0.5 * size
-local sqrt, floor = math.sqrt, math.floor
+local floor = math.floor
 local frames, times, seqs = {}, {}, {}
 for i = 1, n do
   local f = rows[i].frame
@@ -60,7 +60,9 @@ end
 
 local w = pipeline.new()
 local function arithmetic()
-  local state, seq, noise, dof = nil, nil, 0, 0
+  local state, seq = nil, nil
+  local ctx = result.context(w) -- as a tracker's: it keeps the noise measured so far
+  ctx.in_place = true
   for i = 1, n do
     -- (a new track starts from the noise measured so far, as the tracker's do)
     if seqs[i] ~= seq then state, seq = nil, seqs[i] end
@@ -69,18 +71,9 @@ local function arithmetic()
     local _, _, side = associate.centre_and_side(px)
     assert(pipeline.prepare(w, camera))
     assert(pipeline.refined(w, half, pipeline.REFINED_TOLERANCE, solvequad.MAX_ITERATIONS))
-    assert(pipeline.finite(w))
-    local a, b = w.first, w.count == 2 and w.second or nil
-    local ea, eb = sqrt(a.sse / 4), b and sqrt(b.sse / 4)
     state = state or track.new_state()
-    local started = state.count == 0
-    if started then state.sigma2, state.dof = noise, dof end
-    local pick, p = track.step(state, a, b, side, times[i], state)
-    if pick == 2 then a, b, ea, eb = b, a, eb, ea end
-    noise, dof = track.noise(noise, dof, a.sse)
-    local r = result.new(a, ea, b, eb, w.iterations, w.linearisations, b and b.linearisations,
-      camera, half, track.noise_mean(state.sigma2, state.dof), side, times[i])
-    if b and not started then result.set_confidence(r, track.confidence(p)) end
+    ctx.camera, ctx.half, ctx.side, ctx.time, ctx.prior = camera, half, side, times[i], state
+    assert(result.finish(ctx))
   end
 end
 

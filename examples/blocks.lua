@@ -43,7 +43,7 @@ package.path = "./src/?.lua;./src/?/init.lua;" .. package.path
 local tagpose = require("tagpose")
 local log = require("tagpose.tools.log")
 local rotation = require("tagpose.core.rotation")
-local cube = require("tagpose.layout.cube")
+local cube = require("tagpose.rigid.cube")
 
 local sqrt, floor, deg, huge = math.sqrt, math.floor, math.deg, math.huge
 

@@ -35,7 +35,7 @@ local function read(name, kind)
   for line in io.lines(dir .. "/" .. name) do
     if not first then
       local r = numbers(line)
-      if r[1] <= seconds then events[#events + 1] = { kind = kind, row = r } end
+      if r[1] <= seconds then events[#events + 1] = { kind = kind, row = r, n = #events + 1 } end
     end
     first = false
   end
@@ -43,9 +43,13 @@ end
 read("odometry.csv", 1)
 read("gyro.csv", 2)
 read("corners.csv", 3)
+-- by time, then kind, then camera, then the order read: a sort with ties would be free to
+-- split a camera's frame into pieces, or to order its tags differently from run to run
 table.sort(events, function(a, b)
   if a.row[1] ~= b.row[1] then return a.row[1] < b.row[1] end
-  return a.kind < b.kind
+  if a.kind ~= b.kind then return a.kind < b.kind end
+  if a.kind == 3 and a.row[2] ~= b.row[2] then return a.row[2] < b.row[2] end
+  return a.n < b.n
 end)
 
 -- the robot's loop: each sample as it comes; a camera frame is its detections at one time

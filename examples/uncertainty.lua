@@ -2,7 +2,8 @@
 -- pose.confidence on a data set with ground truth (the format of bench/dev).
 --
 --   lua5.4 examples/uncertainty.lua DATASET_DIR [--sigma S | --default-sigma]
---     [--track | --prior] [--kappa K] [--spread S] [--default S,DOF] [--bins] [--textbook]
+--     [--track | --prior] [--kappa K] [--spread S] [--spread-limit E] [--default S,DOF] [--bins]
+--     [--textbook]
 --
 -- DATASET_DIR may also be a directory of data sets (each subdirectory with corners.csv and
 -- truth.csv, or a layout set's truth_layout.csv, is scored). σ is --sigma when given, else each
@@ -11,12 +12,14 @@
 -- library's default). With --track the rows are fed frame by frame to tagpose.tracker (σ as
 -- its options.sigma; frame times from the log's `time` column, else frame / 30); with --prior
 -- each tag's pose of the previous frame (frame - 1) is passed as options.prior to
--- tagpose.solve instead. --kappa and --spread override tagpose.uncertainty.KAPPA and SPREAD,
--- and --default S,DOF its DEFAULT_SIGMA and DEFAULT_DOF (with --default-sigma), for measuring
--- them (the κ table is made for DEFAULT_DOF = 8: with another it is exact only from 10 dof on,
--- for blocks and layouts with a fit of several tags in view); --bins prints the calibration
--- bins; --textbook scores the textbook covariance σ² H⁻¹ at each candidate instead of
--- pose.covariance (H from tagpose.refine.normal at the candidate's pose), for comparison.
+-- tagpose.solve instead. --kappa, --spread and --spread-limit override
+-- tagpose.uncertainty.KAPPA, SPREAD and SPREAD_LIMIT (--spread-limit 1e300: no limit, the
+-- confidence before it), and --default S,DOF its DEFAULT_SIGMA and DEFAULT_DOF (with
+-- --default-sigma), for measuring them (the κ table is made for DEFAULT_DOF = 8: with another
+-- it is exact only from 10 dof on, for blocks and layouts with a fit of several tags in view);
+-- --bins prints the calibration bins; --textbook scores the textbook covariance σ² H⁻¹ at each
+-- candidate instead of pose.covariance (H from tagpose.refine.normal at the candidate's pose),
+-- for comparison.
 --
 -- Per set it prints:
 --   coverage   rows whose true pose lies inside the 95 % ellipsoid of the candidate on the true
@@ -49,7 +52,7 @@ local log = require("tagpose.tools.log")
 local rotation = require("tagpose.core.rotation")
 local uncertainty = require("tagpose.uncertainty")
 local refine = require("tagpose.core.refine")
-local cube = require("tagpose.layout.cube")
+local cube = require("tagpose.rigid.cube")
 
 local sqrt, abs, floor, deg = math.sqrt, math.abs, math.floor, math.deg
 local atan2 = require("tagpose.core.compat").atan2
@@ -57,7 +60,7 @@ local atan2 = require("tagpose.core.compat").atan2
 local function usage(msg)
   io.stderr:write((msg and msg .. "\n" or "") .. "usage: lua examples/uncertainty.lua "
     .. "DATASET_DIR [--sigma S | --default-sigma] [--track | --prior] [--kappa K] "
-    .. "[--spread S] [--default S,DOF] [--bins] [--textbook]\n")
+    .. "[--spread S] [--spread-limit E] [--default S,DOF] [--bins] [--textbook]\n")
   os.exit(2)
 end
 
@@ -75,6 +78,9 @@ do
     elseif a == "--spread" then
       i = i + 1
       opts.spread = tonumber(arg[i] or "") or usage("--spread needs a number")
+    elseif a == "--spread-limit" then
+      i = i + 1
+      opts.spread_limit = tonumber(arg[i] or "") or usage("--spread-limit needs a number")
     elseif a == "--default" then
       i = i + 1
       local s, dof = (arg[i] or ""):match("^([^,]+),([^,]+)$")
@@ -104,6 +110,7 @@ do
 end
 if opts.kappa then uncertainty.KAPPA = opts.kappa end
 if opts.spread then uncertainty.SPREAD = opts.spread end
+if opts.spread_limit then uncertainty.SPREAD_LIMIT = opts.spread_limit end
 if opts.default then
   uncertainty.DEFAULT_SIGMA, uncertainty.DEFAULT_DOF = opts.default[1], opts.default[2]
 end

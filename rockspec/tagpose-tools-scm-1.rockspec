@@ -46,6 +46,7 @@ build = {
     ["tagpose.tools.replay.compare"] = "src/tagpose/tools/replay/compare.lua",
     ["tagpose.tools.replay.frames"] = "src/tagpose/tools/replay/frames.lua",
     ["tagpose.tools.replay"] = "src/tagpose/tools/replay/init.lua",
+    ["tagpose.tools.replay.nearest"] = "src/tagpose/tools/replay/nearest.lua",
     ["tagpose.tools.replay.slots"] = "src/tagpose/tools/replay/slots.lua",
     ["tagpose.tools.replay.stats"] = "src/tagpose/tools/replay/stats.lua",
     ["tagpose.tools.replay.summary"] = "src/tagpose/tools/replay/summary.lua",

@@ -1,5 +1,5 @@
 local tagpose = require("tagpose")
-local cube = require("tagpose.layout.cube")
+local cube = require("tagpose.rigid.cube")
 local geometry = require("support.geometry")
 local assertions = require("support.assertions")
 local layouts = require("support.layouts")
@@ -20,7 +20,7 @@ local function random_rotation(rng)
   return geometry.axis_angle(rng.normal(), rng.normal(), rng.normal(), rng.uniform(0, math.pi))
 end
 
-describe("tagpose.layout.cube", function()
+describe("tagpose.rigid.cube", function()
   describe("ROTATIONS", function()
     it("are the 24 distinct proper signed permutations, identity first", function()
       assert.equal(24, #cube.ROTATIONS)

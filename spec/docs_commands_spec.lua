@@ -118,7 +118,7 @@ local function smaller(cmd)
   cmd = cmd:gsub("(bench/make_sequences%.lua %S+) (%d+)", function(head)
     return head .. " 2 --frames 40"
   end)
-  cmd = cmd:gsub("(bench/make_tags%.lua %S+ %S+ %d+) %d+", "%1 60")
+  cmd = cmd:gsub("(bench/make_tags%.lua %S+ %S+ %S+) %d+", "%1 60")
   cmd = cmd:gsub("(bench/make_tags%.lua %S+ %S+ %d+)$", "%1 60")
   cmd = cmd:gsub("(bench/make_tags%.lua %S+ %S+ %d+) &&", "%1 60 &&")
   cmd = cmd:gsub("(bench/make_blocks%.lua %S+) %d+", "%1 12")

@@ -5,7 +5,7 @@
 
 local localize_plot = require("tagpose.tools.localize_plot")
 local tagpose = require("tagpose")
-local model = require("tagpose.layout.model")
+local model = require("tagpose.rigid.model")
 local run = require("support.run")
 local assertions = require("support.assertions")
 

@@ -23,13 +23,6 @@ local function entries(tags, n, offset)
   return out
 end
 
--- the SVG text of one panel
-local function panel(svg, name)
-  local i = assert(svg:find('<g class="panel" id="panel-' .. name .. '"', 1, true), name)
-  local j = svg:find('<g class="panel"', i + 1, true) or #svg
-  return svg:sub(i, j - 1)
-end
-
 local function assert_xml(svg)
   local ok, complaint = run.xmllint(svg)
   assert.is_true(ok, "xmllint: " .. tostring(complaint))
@@ -227,8 +220,8 @@ describe("tagpose.tools.plot", function()
       assert_xml(svg)
       assert.equal(14, shown.series)
       -- x: cut at the failed row and the gap; y also at the NaN
-      assert.equal(3, run.count(panel(svg, "x"), "<polyline"))
-      assert.equal(4, run.count(panel(svg, "y"), "<polyline"))
+      assert.equal(3, run.count(run.panel(svg, "x"), "<polyline"))
+      assert.equal(4, run.count(run.panel(svg, "y"), "<polyline"))
       -- the single point is a dot in every panel
       assert.equal(7, run.count(svg, "<circle"))
     end)
@@ -266,7 +259,7 @@ describe("tagpose.tools.plot", function()
     -- the y coordinates of the points of every polyline of a series, in order
     local function polylines(svg, name, tag)
       local out = {}
-      local text = panel(svg, name)
+      local text = run.panel(svg, name)
       for group, body in text:gmatch('(<g class="series"[^>]*>)(.-)</g>') do
         if group:find('data-tag="' .. tag .. '"', 1, true) then
           for pts in body:gmatch('<polyline points="([^"]*)"') do
@@ -305,14 +298,14 @@ describe("tagpose.tools.plot", function()
       local svg = plot.poses({ { label = "many", entries = entries(ids, 30) } })
       assert_xml(svg)
       local styles = {}
-      for group in panel(svg, "x"):gmatch('<g class="series"[^>]*>.-</g>') do
+      for group in run.panel(svg, "x"):gmatch('<g class="series"[^>]*>.-</g>') do
         local colour = group:match('stroke="(#%x+)"')
         local marker = group:match('data%-marker="(%a+)"') or "none"
         local key = colour .. "/" .. marker
         assert.is_nil(styles[key], "two tags drawn as " .. key)
         styles[key] = true
       end
-      assert.equal(45, run.count(panel(svg, "x"), '<g class="series"'))
+      assert.equal(45, run.count(run.panel(svg, "x"), '<g class="series"'))
       -- the legend shows the marker of each tag past the tenth
       assert.equal(35, run.count(svg:sub(1, svg:find('<g class="panel"', 1, true)),
         'class="marker"'))
@@ -365,12 +358,12 @@ describe("tagpose.tools.plot", function()
       local svg = plot.draw(rec)
       assert_xml(svg)
       local points = 0
-      for pts in panel(svg, "x"):gmatch('<polyline points="([^"]*)"') do
+      for pts in run.panel(svg, "x"):gmatch('<polyline points="([^"]*)"') do
         points = points + select(2, pts:gsub(",", ""))
       end
       assert.is_true(points <= 2 * plot.MAX_POINTS, points .. " points drawn")
       -- the spike is drawn: the axis reaches past 4 (the rest stays within 0.01)
-      assert.truthy(panel(svg, "x"):find(">4<", 1, true))
+      assert.truthy(run.panel(svg, "x"):find(">4<", 1, true))
       assert.equal(0, rec.dropped)
     end)
 
@@ -421,7 +414,7 @@ describe("tagpose.tools.plot", function()
       assert.same({ panels = 3, series = 2 }, shown)
       assert.equal(3, run.count(svg, '<g class="panel"'))
       -- one x axis for all panels: the same tick labels under each
-      local a, c = panel(svg, "a"), panel(svg, "c")
+      local a, c = run.panel(svg, "a"), run.panel(svg, "c")
       assert.truthy(a:find(">100<", 1, true))
       assert.truthy(c:find(">100<", 1, true))
       assert.truthy(c:find(">-1.0<", 1, true))

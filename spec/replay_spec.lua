@@ -76,9 +76,9 @@ describe("bin/tagpose-replay", function()
     -- the last, near frames: within a millimetre
     assert.is_true(sqrt((poses[#poses].pose.position.z - truth[#truth].pose.position.z) ^ 2)
       < 0.001)
-    -- the figure: valid, 7 panels of 2 tags x 2 logs
+    -- the figure: valid, 7 panels of 2 tags x 2 logs and the confidence strip of the 2 tags
     assert.is_true(run.xmllint(figure))
-    assert.truthy(figure:find('data-panels="7" data-series="28"', 1, true))
+    assert.truthy(figure:find('data-panels="8" data-series="30"', 1, true))
   end)
 
   it("tracks each tag with tagpose.tracker with --track or --max-gap", function()
@@ -163,7 +163,7 @@ describe("bin/tagpose-replay", function()
     local figure = run.read(svg)
     os.remove(svg)
     assert.equal(0, status, text)
-    assert.truthy(text:find("wrote " .. svg .. " (6 panels, 12 series: 2 tags x 1 log)", 1,
+    assert.truthy(text:find("wrote " .. svg .. " (7 panels, 14 series: 2 tags x 1 log)", 1,
       true), text)
     assert.is_true(run.xmllint(figure))
     assert.truthy(figure:find('id="panel-yaw"', 1, true))
@@ -291,7 +291,7 @@ describe("bin/tagpose-replay on the inputs users have", function()
     assert.truthy(text:find("repeated   354 rows share their frame and tag with another row"
       .. " (tag 0, up to 2 in a frame; first at line 5): kept apart as tracks by image position",
       1, true), text)
-    assert.truthy(text:find("(7 panels, 14 series: 2 tracks of 1 tag x 1 log)", 1, true), text)
+    assert.truthy(text:find("(8 panels, 16 series: 2 tracks of 1 tag x 1 log)", 1, true), text)
     assert.truthy(figure:find(">tag 0 #2<", 1, true))
     -- tracking fed each tag its own previous pose: the poses of the log with distinct ids
     local own = assert(replay_poses(LOG, "--track"))

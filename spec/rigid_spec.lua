@@ -1,4 +1,4 @@
-local rigid = require("tagpose.layout.rigid")
+local rigid = require("tagpose.rigid")
 local lsq = require("tagpose.core.lsq")
 local geometry = require("support.geometry")
 
@@ -48,7 +48,7 @@ local function perturbed(rng, r, t, angle, shift)
     t[3] + shift * rng.normal() }
 end
 
-describe("tagpose.layout.rigid", function()
+describe("tagpose.rigid", function()
   describe("fit()", function()
     for _, cam in ipairs({ camera, { fx = 600, fy = 590, cx = 321.5, cy = 238.5,
       distortion = { k1 = -0.3, k2 = 0.1, p1 = 1e-3, p2 = -5e-4 } },

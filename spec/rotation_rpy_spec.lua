@@ -3,6 +3,7 @@
 -- of the three elementary ones, and the textbook angles away from gimbal lock.
 local rotation = require("tagpose.core.rotation")
 local geometry = require("support.geometry")
+local qmul = geometry.qmul
 local assertions = require("support.assertions")
 
 local sin, cos, pi, abs, asin = math.sin, math.cos, math.pi, math.abs, math.asin
@@ -27,14 +28,6 @@ local function mul(a, b)
     end
   end
   return c
-end
-
--- Hamilton product of quaternions {w, x, y, z}
-local function qmul(a, b)
-  return { a[1] * b[1] - a[2] * b[2] - a[3] * b[3] - a[4] * b[4],
-    a[1] * b[2] + a[2] * b[1] + a[3] * b[4] - a[4] * b[3],
-    a[1] * b[3] - a[2] * b[4] + a[3] * b[1] + a[4] * b[2],
-    a[1] * b[4] + a[2] * b[3] - a[3] * b[2] + a[4] * b[1] }
 end
 
 local function largest_difference(a, b)

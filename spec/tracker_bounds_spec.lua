@@ -55,6 +55,52 @@ describe("tagpose.tracker bounds", function()
       :format(per[160], per[20]))
   end)
 
+  it("keeps each of 200 tags of one id on its own track, each in its neighbours' gates",
+    function()
+      -- 200 id-0 tags 1.25 sides apart (a tag's gate, 1.5 sides, holds its neighbours), each
+      -- drifting its own way by up to 2 px a frame, listed in a new order every frame: more
+      -- tracks of one id than tagpose.tracker.associate looks at one by one (its k-d tree)
+      local rng = geometry.rng(2602)
+      local tags, side = {}, 16
+      for i = 0, 199 do
+        local u, v = 120 + 1.25 * side * (i % 20), 140 + 1.25 * side * math.floor(i / 20)
+        tags[i + 1] = { u = u, v = v, du = rng.uniform(-2, 2), dv = rng.uniform(-2, 2),
+          roll = rng.uniform(0, 6) }
+      end
+      assert.is_true(#tags > require("tagpose.tracker.associate").LINEAR)
+      local tr = tagpose.tracker.new(camera, SIZE)
+      local track_of = {}
+      for k = 0, 2 do
+        local order, list = {}, {}
+        for i = 1, #tags do order[i] = i end
+        for i = #order, 2, -1 do
+          local j = math.floor(rng.uniform(1, i + 0.999))
+          order[i], order[j] = order[j], order[i]
+        end
+        local truth = {}
+        for e, i in ipairs(order) do
+          local tag = tags[i]
+          local r, t = geometry.random_pose(nil, camera, SIZE, { width = side, tilt = 0.4,
+            azimuth = 0.5, roll = tag.roll, u = tag.u + k * tag.du, v = tag.v + k * tag.dv })
+          local px = assert(geometry.project(camera, r, t, SIZE))
+          list[e], truth[e] = { id = 0, corners = px }, t
+        end
+        local seen = tr:update(list, k / 30)
+        for e, i in ipairs(order) do
+          local s = seen[e]
+          assert.vector_near(truth[e], s.pose.position, 1e-9)
+          if k == 0 then
+            assert.is_true(s.new)
+            track_of[i] = s.track
+          else
+            assert.is_false(s.new)
+            assert.equal(track_of[i], s.track)
+          end
+        end
+      end
+      assert.equal(200, tr:count())
+    end)
+
   it("keeps a track through a frame republished microseconds later", function()
     -- a camera driver that sends the same frame twice, 10 µs apart, with the detector's noise
     local rng = geometry.rng(33)
@@ -118,4 +164,46 @@ describe("tagpose.tracker bounds", function()
       tr = tagpose.tracker.new(camera, SIZE)
       for k = 0, 5 do assert.is_nil(tr:update({ d }, 0.033 * k).warning) end
     end)
+end)
+
+describe("tracker's camera", function()
+  -- the pose's position error for a tag at pose (r, t) seen through `seen_by`, tracked by tr
+  local function error_of(tr, seen_by, r, t, time)
+    local px = assert(geometry.project(seen_by, r, t, SIZE))
+    local seen = tr:update({ { id = 3, corners = px } }, time)
+    local p = assert(seen[1].pose, seen[1].why)
+    local e = 0
+    for k, key in ipairs({ "x", "y", "z" }) do e = math.max(e, math.abs(p.position[key] - t[k])) end
+    return e
+  end
+
+  it("is the caller's: one recalibrated in place (intrinsics, distortion) is followed", function()
+    local cam = { fx = 600, fy = 600, cx = 320, cy = 240, distortion = { k1 = 0.02 } }
+    local tr = tagpose.tracker.new(cam, SIZE)
+    local r, t = geometry.random_pose(nil, cam, SIZE, { width = 60, tilt = 0.5, azimuth = 0.3,
+      roll = 0.2, u = 300, v = 220 })
+    for k = 0, 2 do assert.is_true(error_of(tr, cam, r, t, k / 30) < 1e-9) end
+    -- the caller's table changed: the corners are now what the new camera sees
+    cam.fx, cam.fy = 900, 900
+    assert.is_true(error_of(tr, cam, r, t, 3 / 30) < 1e-9)
+    cam.distortion.k1 = -0.05
+    assert.is_true(error_of(tr, cam, r, t, 4 / 30) < 1e-9)
+    cam.distortion = nil
+    assert.is_true(error_of(tr, cam, r, t, 5 / 30) < 1e-9)
+  end)
+
+  it("changed into one a solve refuses raises at the caller's update", function()
+    local cam = { fx = 600, fy = 600, cx = 320, cy = 240 }
+    local tr = tagpose.tracker.new(cam, SIZE)
+    local r, t = geometry.random_pose(nil, cam, SIZE, { width = 60, tilt = 0.5, azimuth = 0.3,
+      roll = 0.2, u = 300, v = 220 })
+    local px = assert(geometry.project(cam, r, t, SIZE))
+    tr:update({ { id = 3, corners = px } }, 0)
+    cam.fx = -1
+    local ok, err = pcall(function() tr:update({ { id = 3, corners = px } }, 1 / 30) end)
+    assert.is_false(ok)
+    assert.matches("bad argument #0 to 'update'", err, 1, true)
+    assert.matches("camera was changed", err, 1, true)
+    assert.matches("tracker_bounds_spec.lua", err, 1, true)
+  end)
 end)

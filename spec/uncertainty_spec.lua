@@ -177,7 +177,7 @@ describe("tagpose.uncertainty", function()
         ("confidence %.3f, right %.3f of %d"):format(mean, freq, count))
       -- and the calibration slope: the β that makes logistic(β logit(confidence)) fit the
       -- outcomes best (maximum likelihood, Newton) is 1 for a calibrated confidence (here 1.2:
-      -- SPREAD softens the far tail on purpose); log-odds doubled give 0.74, halved 2.3
+      -- SPREAD holds the middle range back on purpose); log-odds doubled give 0.74, halved 2.3
       local beta = 1
       for _ = 1, 30 do
         local g, h = 0, 0
@@ -216,6 +216,28 @@ describe("tagpose.uncertainty", function()
       -- two basins and the tilt prior), and is no decision
       assert.is_true(abs(big - bigger) < 1e-3 and abs(big - 0.5) < 0.1, ("%.4f %.4f"):format(big,
         bigger))
+    end)
+
+    it("is not capped where the residuals decide the branch", function()
+      -- the other candidate fits worse by Δχ² > 200: its branch is e^100 times less likely
+      -- whatever the basins' volumes (a few units of log-odds), and a confidence of 0.995 would
+      -- claim one such pose in 200 wrong
+      local rng = G.rng(1308)
+      local s, sigma, decided = 0.024, 0.2, 0
+      for _ = 1, 40 do
+        local r, t = G.random_pose(rng, CAMERA, s, { width = rng.uniform(40, 120),
+          tilt = rng.uniform(rad(20), rad(70)) })
+        local px = noisy(G.project(CAMERA, r, t, s), rng, sigma)
+        local pose = assert(tagpose.solve(px, CAMERA, s, { sigma = sigma }))
+        local alt = pose.alternative
+        if alt and 4 * (alt.error ^ 2 - pose.error ^ 2) / sigma ^ 2 > 200 then
+          decided = decided + 1
+          assert.equal(pose, true_branch(pose, r, t))
+          assert.is_true(pose.confidence > 1 - 1e-4, ("%.6f"):format(pose.confidence))
+          assert.is_true(alt.confidence < 1e-4)
+        end
+      end
+      assert.is_true(decided >= 10, tostring(decided))
     end)
 
     it("with a prior, is the tracker's posterior, on the true branch after a track", function()

@@ -95,4 +95,11 @@ function R.count(text, plain)
   end
 end
 
+-- the SVG text of one panel of a plot
+function R.panel(svg, name)
+  local i = assert(svg:find('<g class="panel" id="panel-' .. name .. '"', 1, true), name)
+  local j = svg:find('<g class="panel"', i + 1, true) or #svg
+  return svg:sub(i, j - 1)
+end
+
 return R

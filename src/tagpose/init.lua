@@ -14,10 +14,9 @@ local camera_model = require("tagpose.core.camera")
 local solvequad = require("tagpose.core.solvequad")
 local rotation = require("tagpose.core.rotation")
 local pipeline = require("tagpose.core.pipeline")
-local result = require("tagpose.core.result")
+local result = require("tagpose.result")
 
 local is_positive, describe, is_finite = args.is_positive, args.describe, compat.is_finite
-local sqrt = math.sqrt
 
 local M = {
   _VERSION = "tagpose 0.3.0",
@@ -63,15 +62,23 @@ setmetatable(M, {
 })
 
 local work = pipeline.new() -- the pipeline's workspace, reused by every solve
+local ending = result.context(work) -- what the end of every solve is told (tagpose.result)
+local finish = result.finish
+local defaults = true -- whether ending holds the defaults of what the options set
 local track -- tagpose.track, loaded with the first prior
 
 -- the options solve takes
 local OPTIONS = { "method", "prior", "into", "tolerance", "max_iterations", "sigma", "time",
   "order" }
 
--- Read the options; or nil and a description of the misuse.
-local function read_options(options)
+-- Read the options: the method, solveQuad's tolerance and bound, and what the end of the solve
+-- takes into the context ctx (`tagpose.result`); or nil and a description of the misuse.
+local function read_options(options, ctx)
   if options == nil then
+    if not defaults then
+      ctx.prior, ctx.chained, ctx.into, ctx.sigma2, ctx.time = false, false, false, false, false
+      defaults = true
+    end
     return "refined", M.REFINED_TOLERANCE, solvequad.MAX_ITERATIONS
   end
   if type(options) ~= "table" then return nil, "options table expected, got " .. type(options) end
@@ -124,7 +131,10 @@ local function read_options(options)
   end
   local opencv, why = args.read_order(options.order)
   if opencv == nil then return nil, why end
-  return method, tol, max_it, prior, into, sigma, time, chained
+  ctx.prior, ctx.chained, ctx.into = prior or false, chained, into or false
+  ctx.sigma2, ctx.time = sigma and sigma * sigma or false, time or false
+  defaults = false
+  return method, tol, max_it
 end
 
 -- Whether the options put the corners in OpenCV's order (read before the corners are).
@@ -132,103 +142,8 @@ local function opencv_order(options)
   return type(options) == "table" and options.order == "opencv"
 end
 
---- Steps between the frames of a chain of tracked solves (`options.prior` and `options.time`)
--- of at least this many seconds, three in a row at a steady cadence (each within 1.5 times the
--- one before), are times in milliseconds: the pose's `warning` says so (and standard error,
--- once per chain). The tracking filter models steps up to `tagpose.track.MAX_STEP`.
-local STEADY_STEP = 5
-
--- The cadence of a chain of tracked solves carried from the prior's state to the new one:
--- the step, how many steps in a row were steady and long, whether the chain was warned. The
--- warning, or nil.
-local function cadence(prior, state, time, chained)
-  local step, steady, warned = nil, 0, nil
-  if chained then
-    warned = prior.warned
-    if time ~= nil then
-      step = time - prior.time
-      local last = prior.step
-      if step >= STEADY_STEP and last and last >= STEADY_STEP and step < 1.5 * last
-        and last < 1.5 * step then
-        steady = (prior.steady or 0) + 1
-      end
-    end
-  end
-  state.step, state.steady, state.warned = step, steady, warned
-  if steady < 2 then return nil end
-  local text = ("options.time steps by %.4g between frames, steadily: the tracking filter takes"
-    .. " seconds, and these times look like milliseconds (pass seconds)"):format(step)
-  if not warned then
-    state.warned = true
-    io.stderr:write("tagpose: warning: ", text, "\n")
-  end
-  return "tagpose: " .. text
-end
-
 local function arg_error(n, message)
   args.raise(n, "solve", message, 3)
-end
-
--- The tag's mean side in pixels (the corners px, flat).
--- (Written out: on LuaJIT a loop here starts a side trace that cannot be compiled.)
-local function side(px)
-  local u1, v1, u2, v2, u3, v3, u4, v4 = px[1], px[2], px[3], px[4], px[5], px[6], px[7], px[8]
-  local a, b, c, d = u2 - u1, v2 - v1, u3 - u2, v3 - v2
-  local e, f, g, h = u4 - u3, v4 - v3, u1 - u4, v1 - v4
-  return 0.25 * (sqrt(a * a + b * b) + sqrt(c * c + d * d) + sqrt(e * e + f * f)
-    + sqrt(g * g + h * h))
-end
-
-local spare_state = setmetatable({}, { __mode = "k" }) -- into -> a state to fill next
-
--- The state record a tracked solve fills: into's own (the prior's, when into is the prior, is
--- kept for the next frame while a spare is filled), or a new one.
-local function state_into(into, prior)
-  if not into then return track.new_state() end
-  local current = rawget(into, "track")
-  if track.is_state(current) and current ~= prior then return current end
-  local state = spare_state[into]
-  if not state or state == prior then state = track.new_state() end
-  if track.is_state(current) then spare_state[into] = current end
-  return state
-end
-
--- The result of the refined method from an ordered workspace: the better fit, or with a prior
--- the tracking filter's choice (`tagpose.track`), whose state goes into the result's `track`.
-local function refined_result(w, camera, half, prior, into, sigma, time, chained)
-  local ok, why = pipeline.finite(w)
-  if not ok then return nil, why end
-  local a, b = w.first, w.count == 2 and w.second or nil
-  local ea, eb = sqrt(a.sse / 4), b and sqrt(b.sse / 4)
-  local size = side(w.px)
-  local sigma2 = sigma and sigma * sigma or nil
-  if not prior then
-    return result.new(a, ea, b, eb, w.iterations, w.linearisations, b and b.linearisations,
-      camera, half, sigma2, size, time, into)
-  end
-  local state = state_into(into, prior)
-  local pick, p = track.step(prior, a, b, size, time, state)
-  local warning = cadence(prior, state, time, chained)
-  if pick == 2 then a, b, ea, eb = b, a, eb, ea end
-  -- (the filter keeps its own running estimate of σ² even when options.sigma is given: its
-  -- confidence map was fitted so; σ, or the mean of σ² that estimate implies, sets the
-  -- covariance, as in tagpose.tracker)
-  local r = result.new(a, ea, b, eb, w.iterations, w.linearisations, b and b.linearisations,
-    camera, half, sigma2 or track.noise_mean(state.sigma2, state.dof), size, time, into)
-  if b then result.set_confidence(r, track.confidence(p)) end
-  r.track = state
-  r.warning = warning
-  return r
-end
-
--- The result of the report's method (one candidate, its error measured here). The report's
--- pose is not a least-squares minimum and its method does not look at the other: its
--- covariance is σ² H⁻¹ at it, its confidence 1.
-local function seed_result(w, camera, half, into, sigma, time)
-  local err, why = pipeline.finish_seed(w, camera, half)
-  if not err then return nil, why end
-  return result.new(w.first, err, nil, nil, w.iterations, nil, nil, camera, half,
-    sigma and sigma * sigma or nil, side(w.px), time, into)
 end
 
 --- Solve the pose of one tag.
@@ -275,20 +190,22 @@ function M.solve(corners, camera, tag_size, options)
   if problem then arg_error(2, problem) end
   problem = args.check_size(tag_size, "tag_size")
   if problem then arg_error(3, problem) end
-  local method, tol, max_it, prior, into, sigma, time, chained = read_options(options)
+  local ctx = ending
+  local method, tol, max_it = read_options(options, ctx)
   if not method then arg_error(4, tol) end
   if read ~= true then return nil, "tagpose: corner " .. read .. " is not finite" end
   local ok, why = pipeline.prepare(w, camera)
   if not ok then return nil, why end
   local half = 0.5 * tag_size
-  if method == "refined" then
+  local seed = method == "seed"
+  if seed then
+    ok, why = pipeline.seed(w, half, tol, max_it)
+  else
     ok, why = pipeline.refined(w, half, tol, max_it)
-    if not ok then return nil, why end
-    return refined_result(w, camera, half, prior, into, sigma, time, chained)
   end
-  ok, why = pipeline.seed(w, half, tol, max_it)
   if not ok then return nil, why end
-  return seed_result(w, camera, half, into, sigma, time)
+  ctx.camera, ctx.half, ctx.seed = camera, half, seed
+  return finish(ctx)
 end
 
 return M

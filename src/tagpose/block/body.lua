@@ -2,11 +2,11 @@
 -- the sizes and the options of `tagpose.block.solve`.
 --
 -- A block is a layout (`tagpose.layout`) of tags on a cube: each tag's frame in the block frame,
--- `X_block = R·X_tag + p`, read by `tagpose.layout.model` into a **place** `{r = R flat (tag →
+-- `X_block = R·X_tag + p`, read by `tagpose.rigid.model` into a **place** `{r = R flat (tag →
 -- block), x, y, z = p, key}` (a read tag of the model, with its `half` side and `size` when it
 -- is one tag's; `key` is what one tag of a block occupies: its id, or a symmetric block's face
 -- name, whatever the turn). The fits put a member's corners where its place says
--- (`tagpose.layout.model.corners`). There are two kinds of block:
+-- (`tagpose.rigid.model.corners`). There are two kinds of block:
 --
 -- * **symmetric**: the faces cannot be told apart, by the ids or otherwise — the standard cube
 --   of the lab's blocks (the default), or a layout with `symmetric = true`. A tag of any id may
@@ -27,9 +27,8 @@
 local args = require("tagpose.core.args")
 local compat = require("tagpose.core.compat")
 local rotation = require("tagpose.core.rotation")
-local cube = require("tagpose.layout.cube")
-local model = require("tagpose.layout.model")
-local layout = require("tagpose.layout")
+local cube = require("tagpose.rigid.cube")
+local model = require("tagpose.rigid.model")
 
 local sqrt, abs, acos, deg, rad = math.sqrt, math.abs, math.acos, math.deg, math.rad
 local is_finite, describe, size_of = compat.is_finite, args.describe, args.size_of
@@ -120,7 +119,7 @@ local standard_size, standard_places
 -- symmetric block's tags take their detections' sizes.
 local function standard(block_size, size)
   if block_size ~= standard_size then
-    standard_places = orbit(model.read(layout.cube(size, block_size)), block_size)
+    standard_places = orbit(model.read(cube.layout(size, block_size)), block_size)
     standard_size = block_size
   end
   return standard_places
@@ -302,7 +301,7 @@ function M.new(tag_size, block_size, settings)
           .. " of options.faces and no default"
       end
     end
-    return of_layout(layout.cube(tag_size, block_size, faces), nil, block_size, "options.faces")
+    return of_layout(cube.layout(tag_size, block_size, faces), nil, block_size, "options.faces")
   elseif given then
     return of_layout(given, tag_size, block_size, "options.layout")
   end

@@ -1,8 +1,8 @@
 --- Blocks: the joint fit of a hypothesis and the test that keeps its tags together.
 --
--- A hypothesis's pose is fitted to all its members' corners at once (`tagpose.layout.rigid`, from
+-- A hypothesis's pose is fitted to all its members' corners at once (`tagpose.rigid`, from
 -- the seed's pose), each member's tag at its place on the block (`tagpose.block.body`; its
--- corners by `tagpose.layout.model.corners`). While the joint fit's error exceeds the sum of its
+-- corners by `tagpose.rigid.model.corners`). While the joint fit's error exceeds the sum of its
 -- members' own best single-tag fits by more than the frame's corner noise explains
 -- (`consistent`: an F-test at level `ALPHA`, or `MERGE_FLOOR`), the member with the largest
 -- excess is moved to the place that fits it best (a symmetric block's), or dropped. With
@@ -11,9 +11,9 @@
 -- (`single`). Lengths are in the tag size's unit, errors in pixels.
 -- @module tagpose.block.fit
 
-local rigid = require("tagpose.layout.rigid")
-local cube = require("tagpose.layout.cube")
-local model = require("tagpose.layout.model")
+local rigid = require("tagpose.rigid")
+local cube = require("tagpose.rigid.cube")
+local model = require("tagpose.rigid.model")
 local group = require("tagpose.block.group")
 local identity = require("tagpose.block.identity")
 
@@ -239,7 +239,7 @@ end
 -- fitted with), for its covariance.
 -- @tparam table fr the frame record
 -- @tparam table h a fitted hypothesis
--- @tparam {number,...} out filled (`tagpose.layout.rigid.normal`)
+-- @tparam {number,...} out filled (`tagpose.rigid.normal`)
 -- @treturn number the cost at the pose (`math.huge` when a point is behind the camera)
 function M.normal(fr, h, out)
   load_members(fr, h)

@@ -19,7 +19,7 @@
 
 local args = require("tagpose.core.args")
 local body_model = require("tagpose.block.body")
-local cube = require("tagpose.layout.cube")
+local cube = require("tagpose.rigid.cube")
 local lsq = require("tagpose.core.lsq")
 local pipeline = require("tagpose.core.pipeline")
 local rotation = require("tagpose.core.rotation")

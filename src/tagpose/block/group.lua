@@ -19,7 +19,7 @@
 -- @module tagpose.block.group
 
 local rotation = require("tagpose.core.rotation")
-local cube = require("tagpose.layout.cube")
+local cube = require("tagpose.rigid.cube")
 local symmetric_angle = require("tagpose.block.identity").symmetric_angle
 
 local sqrt, abs, rad, huge = math.sqrt, math.abs, math.rad, math.huge

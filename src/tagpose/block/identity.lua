@@ -5,14 +5,14 @@
 -- equivalents, the frame nearest the previous rotation, so its orientation never jumps between
 -- equivalents. A new block takes the canonical frame: block z the face axis closest to up
 -- (the frame's up, default the camera's −y), block x the remaining face axis closest to the
--- direction from the camera to the block's centre (`tagpose.layout.cube.canonical`). That is
+-- direction from the camera to the block's centre (`tagpose.rigid.cube.canonical`). That is
 -- for a symmetric block (`tagpose.block.body`); an identified one is returned in its layout's
 -- frame, found again or not.
 -- @module tagpose.block.identity
 
 local compat = require("tagpose.core.compat")
 local rotation = require("tagpose.core.rotation")
-local cube = require("tagpose.layout.cube")
+local cube = require("tagpose.rigid.cube")
 
 local sqrt = math.sqrt
 local is_finite = compat.is_finite

@@ -13,8 +13,8 @@
 local compat = require("tagpose.core.compat")
 local args = require("tagpose.core.args")
 local rotation = require("tagpose.core.rotation")
-local cube = require("tagpose.layout.cube")
-local model = require("tagpose.layout.model")
+local cube = require("tagpose.rigid.cube")
+local model = require("tagpose.rigid.model")
 
 local is_finite, is_positive, describe = compat.is_finite, args.is_positive, args.describe
 local sqrt, rad = math.sqrt, math.rad

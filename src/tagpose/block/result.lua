@@ -9,7 +9,7 @@
 
 local compat = require("tagpose.core.compat")
 local rotation = require("tagpose.core.rotation")
-local cube = require("tagpose.layout.cube")
+local cube = require("tagpose.rigid.cube")
 local identity = require("tagpose.block.identity")
 local spread = require("tagpose.block.uncertainty")
 

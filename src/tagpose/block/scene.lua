@@ -6,7 +6,7 @@
 -- that the camera is rolled and pitched by less than 45 degrees.
 -- @module tagpose.block.scene
 
-local cube = require("tagpose.layout.cube")
+local cube = require("tagpose.rigid.cube")
 local fit = require("tagpose.block.fit")
 
 local sqrt, abs, huge = math.sqrt, math.abs, math.huge

@@ -310,4 +310,42 @@ function M.from_matrix(K, D, model)
   return camera
 end
 
+--- A copy of a camera (its distortion table copied too), for a caller that keeps using it while
+-- its owner may change the original (the tracker: `same` tells it when).
+-- @tparam table camera a checked camera
+-- @treturn table the copy
+function M.copy(camera)
+  local copy = {}
+  for k, v in pairs(camera) do copy[k] = v end
+  copy.fx, copy.fy, copy.cx, copy.cy = camera.fx, camera.fy, camera.cx, camera.cy
+  copy.model, copy.distortion = camera.model, camera.distortion
+  local d = camera.distortion
+  if type(d) == "table" then
+    copy.distortion = {}
+    for k, v in pairs(d) do copy.distortion[k] = v end
+  end
+  return copy
+end
+
+--- Whether a camera still holds what `copy` was made of: its intrinsics, model and distortion
+-- (a few reads, where `check` is a few hundred instructions).
+-- @tparam table camera the camera
+-- @tparam table copy what `M.copy` made of it
+-- @treturn boolean
+function M.same(camera, copy)
+  if camera.fx ~= copy.fx or camera.fy ~= copy.fy or camera.cx ~= copy.cx
+    or camera.cy ~= copy.cy or camera.model ~= copy.model then
+    return false
+  end
+  local d, c = camera.distortion, copy.distortion
+  if type(d) ~= "table" or type(c) ~= "table" then return d == c end
+  for k, v in pairs(d) do
+    if c[k] ~= v then return false end
+  end
+  for k in pairs(c) do
+    if d[k] == nil then return false end
+  end
+  return true
+end
+
 return M

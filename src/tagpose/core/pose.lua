@@ -1,5 +1,5 @@
 --- Poses of a tag: its corners in the camera and their reprojection error (the public result
--- table is `tagpose.core.result`'s).
+-- table is `tagpose.result.pose`'s).
 --
 -- Internally a pose is a flat rotation `r` (row-major 3×3, tag → camera, see
 -- `tagpose.rotation`) and a translation `tx, ty, tz` (the tag centre in the camera frame, in the

@@ -18,7 +18,7 @@
 --   with `#` are skipped;
 -- * WPILib field maps (`.json`, read only): `tagpose.formats.wpilib`.
 --
--- Ids are whole numbers of magnitude below 2^53 (`tagpose.layout.model.is_id`), in every
+-- Ids are whole numbers of magnitude below 2^53 (`tagpose.rigid.model.is_id`), in every
 -- format, read and written. A file larger than `MAX_BYTES` is refused unread. Writing checks
 -- and encodes everything first and then writes the file whole (`tagpose.formats.output`: a
 -- temporary file renamed onto the target), so a refused layout or a failed write leaves the
@@ -29,7 +29,7 @@
 -- Errors are `nil, "path:LINE: reason"`.
 -- @module tagpose.formats.layout
 
-local model = require("tagpose.layout.model")
+local model = require("tagpose.rigid.model")
 local yaml = require("tagpose.formats.yaml")
 local luadata = require("tagpose.formats.luadata")
 local output = require("tagpose.formats.output")

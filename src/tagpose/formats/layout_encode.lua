@@ -1,10 +1,10 @@
---- Layout files written: a read layout (`tagpose.layout.model.read`) as the text of a CSV, an
+--- Layout files written: a read layout (`tagpose.rigid.model.read`) as the text of a CSV, an
 -- apriltag_ros `tags.yaml` or a Lua data file, each read back by `tagpose.formats.layout` to
 -- the last bit (numbers as `%.17g`, ids as whole numbers, names escaped so that the format's
 -- reader gives them back).
 -- @module tagpose.formats.layout_encode
 
-local model = require("tagpose.layout.model")
+local model = require("tagpose.rigid.model")
 
 local format, concat, byte = string.format, table.concat, string.byte
 
@@ -34,7 +34,7 @@ local function num(v)
 end
 
 --- An id as the files write it (a whole number, no exponent, no `-0`).
--- @tparam number id a tag id (`tagpose.layout.model.is_id`)
+-- @tparam number id a tag id (`tagpose.rigid.model.is_id`)
 -- @treturn string
 function M.id_text(id)
   if id == 0 then return "0" end
@@ -57,7 +57,7 @@ local function each(tags)
 end
 
 --- Encode a read layout as CSV (a CSV layout has no name).
--- @tparam table tags a layout read by `tagpose.layout.model.read`
+-- @tparam table tags a layout read by `tagpose.rigid.model.read`
 -- @treturn string
 function M.csv(tags)
   local lines = { concat(CSV_COLUMNS, ",") }

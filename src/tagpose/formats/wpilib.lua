@@ -19,13 +19,13 @@
 -- is 6.5 in, 0.1651 m). `field` is checked (length and width in metres) and not kept: a layout
 -- is its tags. A key the format does not have is refused, naming the key meant. Ids are whole
 -- numbers >= 0 below 2^53 and quaternions are normalised without overflow, as in every layout
--- format (`tagpose.layout.model`'s `is_id` and `unit_quaternion`).
+-- format (`tagpose.rigid.model`'s `is_id` and `unit_quaternion`).
 -- @module tagpose.formats.wpilib
 
 local compat = require("tagpose.core.compat")
 local json = require("tagpose.formats.json")
 local failure = require("tagpose.formats.failure")
-local model = require("tagpose.layout.model")
+local model = require("tagpose.rigid.model")
 
 local is_finite = compat.is_finite
 local concat = table.concat
@@ -136,7 +136,7 @@ local function read_field(r, doc, lines)
   return v[1], v[2]
 end
 
--- The tags' size against the map's extent (`tagpose.layout.model.size_contradiction`, the
+-- The tags' size against the map's extent (`tagpose.rigid.model.size_contradiction`, the
 -- field's length and width included): a refusal when the size cannot be in metres.
 local function check_size(r, tags, length, width)
   local id, _, extent = model.size_contradiction(tags, math.max(length or 0, width or 0))

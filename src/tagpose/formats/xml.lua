@@ -28,6 +28,7 @@ local compat = require("tagpose.core.compat")
 local failure = require("tagpose.formats.failure")
 
 local byte, sub, find = string.byte, string.sub, string.find
+local huge = math.huge
 local utf8_char = compat.utf8_char
 
 local M = {}
@@ -94,10 +95,22 @@ function M.unescape(s)
   return table.concat(out)
 end
 
+-- the first `&` at or after pos, or nil: texts and values are checked in document order, so
+-- the search resumes where the last one ended and each `&` is found once (a text of one long
+-- line with no `&` is not scanned again for each of its values)
+local function next_amp(st, pos)
+  local amp = st.amp
+  if pos < st.amp_from or (amp and amp < pos) then
+    amp = find(st.text, "&", pos, true) or false
+    st.amp, st.amp_from = amp, pos
+  end
+  return amp or nil
+end
+
 -- refuse a text (from..to) whose references are not all known
 local function check_references(st, from, to)
   local text = st.text
-  local a = find(text, "&", from, true)
+  local a = next_amp(st, from)
   while a and a <= to do
     local ref = text:match("^&([#%w]+);", a)
     local why
@@ -108,7 +121,7 @@ local function check_references(st, from, to)
       _, why = reference(ref)
     end
     if why then fail(st, a, why) end
-    a = find(text, "&", a + #ref + 2, true)
+    a = next_amp(st, a + #ref + 2)
   end
 end
 
@@ -163,10 +176,11 @@ local function read_attributes(st, pos)
     end
     local close = find(text, quote, eq + 2, true)
     if not close then fail(st, eq + 1, "the value of attribute '" .. name .. "' is not closed") end
-    local lt = find(text, "<", eq + 2, true)
-    if lt and lt < close then fail(st, lt, "'<' in the value of attribute '" .. name .. "'") end
+    local value = sub(text, eq + 2, close - 1)
+    local lt = find(value, "<", 1, true)
+    if lt then fail(st, eq + 1 + lt, "'<' in the value of attribute '" .. name .. "'") end
     check_references(st, eq + 2, close - 1)
-    attributes[name] = M.unescape(sub(text, eq + 2, close - 1))
+    attributes[name] = M.unescape(value)
     pos = close + 1
   end
 end
@@ -255,7 +269,7 @@ end
 function M.decode(text, name)
   failure.check(text, name, true)
   local st = { text = text, name = name or "xml", line = 1, next_nl = find(text, "\n", 1, true),
-    max_depth = M.MAX_DEPTH }
+    amp = false, amp_from = huge, max_depth = M.MAX_DEPTH }
   return failure.protect(parse, st)
 end
 

@@ -37,7 +37,7 @@
 local rotation = require("tagpose.core.rotation")
 local compat = require("tagpose.core.compat")
 local args = require("tagpose.core.args")
-local model = require("tagpose.layout.model")
+local model = require("tagpose.rigid.model")
 local frame = require("tagpose.layout.solve")
 local bundle = require("tagpose.layout.bundle")
 local schur = require("tagpose.layout.schur")
@@ -366,7 +366,7 @@ end
 --- Calibrate a layout (arguments checked by `tagpose.layout.calibrate`).
 -- @tparam {table,...} frames arrays of detections
 -- @tparam table camera a checked camera
--- @tparam table tags the nominal layout, read (`tagpose.layout.model.read`)
+-- @tparam table tags the nominal layout, read (`tagpose.rigid.model.read`)
 -- @tparam table o the options: `max_iterations`, `reference`, `robust`, `sigma`, `opencv` (the
 --   corners in OpenCV's order)
 -- @tparam[opt] string name the layout's name, kept

@@ -1,7 +1,7 @@
 --- The joint fit of a rigid set of points through the lens, on flat arrays: the kernel under
 -- `tagpose.layout.solve` (and, in time, under `tagpose.block`'s hypotheses).
 --
--- `fit` is `tagpose.layout.rigid.fit` (Levenberg-Marquardt over the six pose parameters, the
+-- `fit` is `tagpose.rigid.fit` (Levenberg-Marquardt over the six pose parameters, the
 -- rotation updated on the left by the Cayley transform of a rotation vector, with the optional
 -- axis and plane priors) followed by one linearisation at the result, so that the caller gets
 -- the final normal equations for the covariance and the confidence. The normal equations are
@@ -25,7 +25,7 @@
 -- @module tagpose.layout.fit
 
 local lsq = require("tagpose.core.lsq")
-local rigid = require("tagpose.layout.rigid")
+local rigid = require("tagpose.rigid")
 
 local huge = math.huge
 
@@ -65,8 +65,8 @@ end
 -- @tparam number tx start translation (the body origin in the camera frame)
 -- @tparam number ty
 -- @tparam number tz
--- @tparam[opt] int max_iterations bound on linearisations (default `tagpose.layout.rigid`'s)
--- @tparam[opt] {number,...} prior the priors of `tagpose.layout.rigid.fit` (with priors the
+-- @tparam[opt] int max_iterations bound on linearisations (default `tagpose.rigid`'s)
+-- @tparam[opt] {number,...} prior the priors of `tagpose.rigid.fit` (with priors the
 --   iterations run about the body origin, whose translation the plane prior holds)
 -- @tparam[opt] {number,...} N when given, filled with the normal equations at the result
 -- @treturn number tx
@@ -110,7 +110,7 @@ function M.fit(camera, points, px, n, r, tx, ty, tz, max_iterations, prior, N)
   return tx, ty, tz, cost, k, sse
 end
 
---- Sum of squared pixel residuals of points first..last at a pose (`tagpose.layout.rigid.cost`).
+--- Sum of squared pixel residuals of points first..last at a pose (`tagpose.rigid.cost`).
 -- @tparam table camera a checked camera
 -- @tparam {number,...} points body points, flat
 -- @tparam {number,...} px observed pixels, flat

@@ -19,15 +19,15 @@
 
 local args = require("tagpose.core.args")
 local camera_model = require("tagpose.core.camera")
-local cube = require("tagpose.layout.cube")
-local model = require("tagpose.layout.model")
+local cube = require("tagpose.rigid.cube")
+local model = require("tagpose.rigid.model")
 
-local is_positive, describe, size_of = args.is_positive, args.describe, args.size_of
+local is_positive, describe = args.is_positive, args.describe
 
 local M = {}
 
--- The modules of solve, calibrate and the files, loaded when first used: `cube` alone (what
--- `tagpose.block` takes) loads none of them.
+-- The modules of solve, calibrate and the files, loaded when first used: `cube` alone
+-- (`tagpose.rigid.cube.layout`, which `tagpose.block` uses) loads none of them.
 local loaded = {}
 local function lazy(name)
   local module = loaded[name]
@@ -263,27 +263,11 @@ function M.encode(path, layout)
   return lazy("tagpose.formats.layout").encode(path, tags, layout.name)
 end
 
--- The tag frame on each face of the standard cube, `[tag_x tag_y tag_z]` (columns) in the
--- block frame, flat row-major: tag z into the block; on the side faces tag y = -z (the tag
--- upright on an upright block), tag x = tag y × tag z; on the top tag x = +x, tag y = -y; on
--- the bottom tag x = +x, tag y = +y. The one place where tagpose puts tags on a cube's faces.
-local FACE_FRAMES = {
-  ["+x"] = { 0, 0, -1, 1, 0, 0, 0, -1, 0 },
-  ["-x"] = { 0, 0, 1, -1, 0, 0, 0, -1, 0 },
-  ["+y"] = { -1, 0, 0, 0, 0, -1, 0, -1, 0 },
-  ["-y"] = { 1, 0, 0, 0, 0, 1, 0, -1, 0 },
-  ["+z"] = { 1, 0, 0, 0, -1, 0, 0, 0, -1 },
-  ["-z"] = { 1, 0, 0, 0, 1, 0, 0, 0, 1 },
-}
-
--- the default faces: ids 0 to 5 on +x, -x, +y, -y, +z, -z
-local DEFAULT_FACES = { [0] = "+x", "-x", "+y", "-y", "+z", "-z" }
-
 --- The layout of a cube block with a centred tag on each face named: the standard cube, whose
 -- faces carry the tags as the lab's blocks do (tag z into the block; on the side faces the
 -- tag upright on an upright block; on the top tag x = +x, tag y = -y; on the bottom tag
 -- x = +x, tag y = +y). Every face's tag frame `R_f` is one of the cube's rotations
--- (`tagpose.layout.cube`), and `X_block = R_f·X_tag + (block_size/2)·n_f`, `n_f` the face's
+-- (`tagpose.rigid.cube`), and `X_block = R_f·X_tag + (block_size/2)·n_f`, `n_f` the face's
 -- outward normal. With `symmetric = true` set on the result, it is the block of
 -- `tagpose.block.solve` whose faces cannot be told apart (its default).
 -- @tparam number|table tag_size side of the tags' black squares; or the sides by tag id,
@@ -295,35 +279,9 @@ local DEFAULT_FACES = { [0] = "+x", "-x", "+y", "-y", "+z", "-z" }
 -- @treturn table layout `{tags = {[id] = {size =, position =, quaternion =}}}`
 -- @raise `bad argument #n to 'cube'` for bad sizes or faces, or a tag of the faces without a
 --   size
+-- @function cube
 -- @usage
 -- local blocks = tagpose.layout.cube(0.024, 0.055, { [7] = "+z", [8] = "-x" })
-function M.cube(tag_size, block_size, faces)
-  local problem = args.check_sizes(tag_size, "tag_size")
-  if problem then raise(1, "cube", problem) end
-  for _, size in pairs(type(tag_size) == "table" and tag_size or { tag_size }) do
-    if not (is_positive(block_size) and block_size > size) then
-      raise(2, "cube", "number above tag_size expected for block_size, got "
-        .. describe(block_size))
-    end
-  end
-  faces = faces or DEFAULT_FACES
-  if type(faces) ~= "table" then raise(3, "cube", "table expected, got " .. type(faces)) end
-  local tags, half = {}, 0.5 * block_size
-  for id, face in pairs(faces) do
-    local k = type(face) ~= "string" and cube.of_nested(face)
-    local r = FACE_FRAMES[face] or cube.ROTATIONS[k]
-    if not (model.is_id(id) and r) then
-      raise(3, "cube", "faces[" .. tostring(id) .. "]: face '+x', '-x', '+y', '-y', '+z' or "
-        .. "'-z', or a 3x3 rotation of the cube, expected")
-    end
-    local size = size_of(tag_size, id)
-    if size == nil then
-      raise(1, "cube", "tag_size has no size for tag id " .. tostring(id) .. " and no default")
-    end
-    -- the face's outward normal: -R_f·e_z
-    tags[id] = model.entry(r, 0 - half * r[3], 0 - half * r[6], 0 - half * r[9], size)
-  end
-  return { tags = tags }
-end
+M.cube = cube.layout
 
 return M

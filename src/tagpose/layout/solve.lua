@@ -295,7 +295,7 @@ end
 --- Solve a layout's pose from one frame's detections.
 -- @tparam table detections array of `{id =, corners =}`
 -- @tparam table camera a checked camera
--- @tparam table tags read tags by id (`tagpose.layout.model.read_tag`)
+-- @tparam table tags read tags by id (`tagpose.rigid.model.read_tag`)
 -- @tparam table o the options: `sigma`, `max_iterations`, `opencv` (the corners in OpenCV's
 --   order)
 -- @treturn table the body (see `tagpose.layout.solve`)

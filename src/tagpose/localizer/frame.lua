@@ -317,7 +317,7 @@ function M.other(obs, n, sol, pr, sigma, nuisance)
 end
 
 --- The robot poses a tag alone gives, from the camera-frame poses of `tagpose.solve`.
--- @tparam table tag a read map tag (`tagpose.layout.model`)
+-- @tparam table tag a read map tag (`tagpose.rigid.model`)
 -- @tparam table mount `{r =, t =}`
 -- @tparam table pose a result of `tagpose.solve` (metres)
 -- @treturn {table,...} one or two robot poses

@@ -26,7 +26,7 @@
 
 
 local frame = require("tagpose.localizer.frame")
-local model = require("tagpose.layout.model")
+local model = require("tagpose.rigid.model")
 local args = require("tagpose.core.args")
 local compat = require("tagpose.core.compat")
 local inputs = require("tagpose.localizer.options")

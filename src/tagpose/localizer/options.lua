@@ -3,7 +3,7 @@
 -- at the caller's line.
 -- @module tagpose.localizer.options
 
-local model = require("tagpose.layout.model")
+local model = require("tagpose.rigid.model")
 local rotation = require("tagpose.core.rotation")
 local camera_mod = require("tagpose.core.camera")
 local args = require("tagpose.core.args")

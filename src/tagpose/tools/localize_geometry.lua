@@ -7,7 +7,7 @@
 --
 -- Inputs:
 --
--- - `tags`: the localizer's read map (`loc.tags`, `tagpose.layout.model.read`'s): `{ids =
+-- - `tags`: the localizer's read map (`loc.tags`, `tagpose.rigid.model.read`'s): `{ids =
 --   {id, ...}, [id] = {x =, y =, r = {9}, size =, ...}}`, `r` the flat, row-major tag → field
 --   rotation, 1-based (`r[1]`, `r[4]`: the tag's x axis on the floor).
 -- - `rows`: the localizer's results, of which only `time`, `position.x`, `position.y` and (for

@@ -8,7 +8,7 @@
 --
 -- Inputs:
 --
--- - `tags`: the localizer's read map (`loc.tags`, `tagpose.layout.model.read`'s): `{ids =
+-- - `tags`: the localizer's read map (`loc.tags`, `tagpose.rigid.model.read`'s): `{ids =
 --   {id, ...}, [id] = {x =, y =, z =, r = {9}, size =, ...}}`, `r` the flat, row-major
 --   tag → field rotation (tag frame: x right, y down, z into the tag). A tag is drawn as a
 --   segment along its face (its x axis on the floor), a tick on the side it faces and its id.

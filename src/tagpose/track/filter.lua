@@ -13,16 +13,22 @@
 -- 4. **emit**: the kept children become the state, with the posterior of each candidate and
 --    the smoothing numbers.
 --
--- The children live in this module's scratch arrays, one array per quantity (`cx, cy`: the
--- tilt; `cvx, cvy`: its rate; `cpp, cpv, cvv`: the per-axis covariance; `clw`: the log-weight;
--- `cw`: the weight; `cpick`: the candidate chosen; `cfrom`: the previous frame's candidate the
--- parent chose, 0 for a new path). A state's `hypotheses` is `tagpose.track.STRIDE` numbers per
+-- The children live in this module's scratch arrays, one per quantity, by slot: slot j holds
+-- the two children of the previous state's j-th hypothesis (the last slot, the new paths).
+-- Per slot `spp, spv, svv` (the per-axis covariance the two share) and `sfrom` (the candidate
+-- the parent chose, 0 for a new path); per child of the first candidate `x1, y1` (tilt), `vx1,
+-- vy1` (rate), `lw1` (log-weight), `w1` (weight), of the second `x2, ..., w2`. Ties of weight
+-- go to the child made first: the first candidate's of slot j before the second's of slot k
+-- exactly when j <= k. A state's `hypotheses` is `tagpose.track.STRIDE` numbers per
 -- hypothesis: τx, τy, their rates, the position variance, the position-rate covariance, the
--- rate variance, the log-weight (the state's weights sum to one in probability) and the
--- candidate it chose. Only this module reads or writes it.
+-- rate variance, the log-weight (the weights sum to one in probability) and the candidate it
+-- chose. Only this module reads or writes it.
 -- @module tagpose.track.filter
 
+local compat = require("tagpose.core.compat")
+
 local sqrt, exp, log, min, max = math.sqrt, math.exp, math.log, math.min, math.max
+local JIT = compat.jit
 
 local M = {}
 
@@ -30,14 +36,16 @@ local LOG_DISK = log(1 / math.pi) -- log density of a tilt vector uniform over t
 local TWO_PI = 2 * math.pi
 local TINY = 1e-300 -- the least weight a kept hypothesis carries
 
--- scratch for the children of one frame, as parallel arrays (see the module's header)
-local cx, cy, cvx, cvy, cpp, cpv, cvv, clw, cw, cpick, cfrom = {}, {}, {}, {}, {}, {}, {}, {},
-  {}, {}, {}
--- the kept children: all, and per candidate their index, tilt, rate and merging radius²
-local kept = {}
+-- scratch for the children of one frame (see the module's header)
+local spp, spv, svv, sfrom = {}, {}, {}, {}
+local x1, y1, vx1, vy1, lw1, w1 = {}, {}, {}, {}, {}, {}
+local x2, y2, vx2, vy2, lw2, w2 = {}, {}, {}, {}, {}, {}
+-- each candidate's children in order of weight (slots), and the kept children: all (`kept`:
+-- the slot, negated for the second candidate's), and per candidate their slot, tilt, rate and
+-- merging radius²
+local run1, run2, kept = {}, {}, {}
 local k1, k1x, k1y, k1vx, k1vy, k1r = {}, {}, {}, {}, {}, {}
 local k2, k2x, k2y, k2vx, k2vy, k2r = {}, {}, {}, {}, {}, {}
-local seen, stamp = {}, 0 -- seen[i] == stamp: child i was considered in the first pass
 
 -- A track's first frame: a path at each candidate, weighted by the evidence (what `step`
 -- does with no hypotheses, without its loops).
@@ -45,17 +53,17 @@ local function start(T, out, time, s2, ax, ay, bx, by, r2, has2, ev)
   -- log-weights of the two paths, summing to one in probability (ev is within ±700)
   local a = ev >= 0 and -ev or ev
   local lw_better = -log(1 + exp(a))
-  local lw1, lw2 = lw_better, a + lw_better
-  if ev < 0 then lw1, lw2 = lw2, lw1 end
-  local p1 = has2 and exp(lw1) or 1
-  if not has2 then lw1 = 0 end
+  local lwa, lwb = lw_better, a + lw_better
+  if ev < 0 then lwa, lwb = lwb, lwa end
+  local p1 = has2 and exp(lwa) or 1
+  if not has2 then lwa = 0 end
   out.time, out.sigma2, out.first, out.back_first, out.back_second = time, s2, p1, 0.5, 0.5
   local h = out.hypotheses
-  h[1], h[2], h[3], h[4], h[5], h[6], h[7], h[8], h[9] = ax, ay, 0, 0, r2, 0, T.RATE, lw1, 1
+  h[1], h[2], h[3], h[4], h[5], h[6], h[7], h[8], h[9] = ax, ay, 0, 0, r2, 0, T.RATE, lwa, 1
   local n = 1
   if has2 then
     h[10], h[11], h[12], h[13], h[14], h[15], h[16], h[17], h[18] = bx, by, 0, 0, r2, 0, T.RATE,
-      lw2, 2
+      lwb, 2
     n = 2
   end
   out.count = n
@@ -64,29 +72,18 @@ local function start(T, out, time, s2, ax, ay, bx, by, r2, has2, ev)
   return 2, 1 - p1
 end
 
--- The log of the share of the children of one hypothesis that choose the first candidate, and
--- of those that choose the second, when their candidates lie at d1 and d2 (their exponents)
--- from its prediction: -log(1 + e^(d1 - d2)) and -log(1 + e^(d2 - d1)). (Without a branch,
--- the difference held within ±700 by min and max: on LuaJIT a side exit here, in branch's
--- loop, is a trace that cannot be compiled, and a hypothesis far from one candidate takes it
--- often.)
-local function shares(d1, d2)
-  local d = min(max(d1 - d2, -700), 700)
-  local soft = log(1 + exp(d))
-  return -soft, d - soft
-end
-
 -- Steps 1 and 2: the children of every hypothesis of `prev` and the new paths, into the
--- scratch arrays; returns their count. (a: the first candidate's measurement, b the second's,
--- r2 their variance, half the frame's evidence halved; z1, z2 the candidates' tilt vectors
--- squared as complex numbers, rho2 the variance of each of their parts.)
+-- scratch arrays; returns the slots. (a: the first candidate's
+-- measurement, b the second's, r2 their variance, half the frame's evidence halved; z1, z2 the
+-- candidates' tilt vectors squared as complex numbers, rho2 the variance of each of their
+-- parts.)
 local function branch(T, prev, dt, ax, ay, bx, by, has2, r2, half, z1r, z1i, z2r, z2i, rho2)
   -- (the scratch arrays as locals: an upvalue costs one more instruction at every use)
   -- luacheck: push ignore 431
-  local cx, cy, cvx, cvy, cpp, cpv, cvv, clw, cpick, cfrom = cx, cy, cvx, cvy, cpp, cpv, cvv,
-    clw, cpick, cfrom
+  local spp, spv, svv, sfrom, x1, y1, vx1, vy1, lw1 = spp, spv, svv, sfrom, x1, y1, vx1, vy1, lw1
+  local x2, y2, vx2, vy2, lw2 = x2, y2, vx2, vy2, lw2
   -- luacheck: pop
-  local h, k, q = prev.hypotheses, 0, T.PROCESS
+  local h, j, q = prev.hypotheses, 0, T.PROCESS
   local dt2 = dt * dt
   local q1, q2, q3 = q * dt, q * dt2 / 2, q * dt2 * dt / 3
   for o = 0, (prev.count - 1) * 9, 9 do
@@ -96,7 +93,6 @@ local function branch(T, prev, dt, ax, ay, bx, by, has2, r2, half, z1r, z1i, z2r
     local pp = pp0 + 2 * dt * pv0 + dt2 * vv0 + q3
     local pv = pv0 + dt * vv0 + q2
     local vv = vv0 + q1
-    local from = h[o + 9]
     -- the frame's likelihood under the hypothesis: its tilt squared against the candidates',
     -- with the prediction's spread carried through the square
     local xx, yy, xy = x * x, y * y, 2 * x * y
@@ -108,112 +104,111 @@ local function branch(T, prev, dt, ax, ay, bx, by, has2, r2, half, z1r, z1i, z2r
     -- the Kalman update of either child: the same gains and covariance
     local s = pp + r2
     local g1, g2 = pp / s, pv / s
-    local upp, upv, uvv = pp - g1 * pp, pv - g1 * pv, vv - g2 * pv
     local dx, dy = ax - x, ay - y
-    k = k + 1
-    cx[k], cy[k], cvx[k], cvy[k] = x + g1 * dx, y + g1 * dy, vx + g2 * dx, vy + g2 * dy
-    cpp[k], cpv[k], cvv[k] = upp, upv, uvv
-    cpick[k], cfrom[k] = 1, from
+    j = j + 1
+    x1[j], y1[j], vx1[j], vy1[j] = x + g1 * dx, y + g1 * dy, vx + g2 * dx, vy + g2 * dy
+    spp[j], spv[j], svv[j], sfrom[j] = pp - g1 * pp, pv - g1 * pv, vv - g2 * pv, h[o + 9]
+    local l = lw + half - l1
     if has2 then
+      -- the log of the share of the children that choose either candidate, as they lie at e1
+      -- and e2 (their exponents) from the prediction: -log(1 + exp(e1 - e2)) and -log(1 +
+      -- exp(e2 - e1)), the difference held within ±700: on LuaJIT by min and max (a side exit
+      -- here is a trace that cannot be compiled), on PUC Lua by branches (two calls of C
+      -- functions cost more; the same number, NaN and -0 included)
       local ex, ey = bx - x, by - y
-      local sa, sb = shares((dx * dx + dy * dy) / (2 * s), (ex * ex + ey * ey) / (2 * s))
-      clw[k] = lw + half - l1 + sa
+      local d = (dx * dx + dy * dy) / (2 * s) - (ex * ex + ey * ey) / (2 * s)
+      if JIT then
+        d = min(max(d, -700), 700)
+      elseif d < -700 then
+        d = -700
+      elseif d > 700 then
+        d = 700
+      end
+      local soft = log(1 + exp(d))
+      l = l + -soft
       dr, di = z2r - qx, z2i - xy
-      k = k + 1
-      cx[k], cy[k], cvx[k], cvy[k] = x + g1 * ex, y + g1 * ey, vx + g2 * ex, vy + g2 * ey
-      cpp[k], cpv[k], cvv[k] = upp, upv, uvv
-      clw[k], cpick[k], cfrom[k] = lw - half - (dr * dr + di * di) / (2 * S) + sb, 2, from
-    else
-      clw[k] = lw + half - l1
+      x2[j], y2[j], vx2[j], vy2[j] = x + g1 * ex, y + g1 * ey, vx + g2 * ex, vy + g2 * ey
+      local l2 = lw - half - (dr * dr + di * di) / (2 * S) + (d - soft)
+      lw2[j] = l2
     end
+    lw1[j] = l
   end
   -- a new path at either candidate, with the motion history forgotten
   local base = log(T.BIRTH) + LOG_DISK
-  k = k + 1
-  cx[k], cy[k], cvx[k], cvy[k], cpp[k], cpv[k], cvv[k] = ax, ay, 0, 0, r2, 0, T.RATE
-  clw[k], cpick[k], cfrom[k] = base + half, 1, 0
-  if has2 then
-    k = k + 1
-    cx[k], cy[k], cvx[k], cvy[k], cpp[k], cpv[k], cvv[k] = bx, by, 0, 0, r2, 0, T.RATE
-    clw[k], cpick[k], cfrom[k] = base - half, 2, 0
-  end
-  return k
+  j = j + 1
+  x1[j], y1[j], vx1[j], vy1[j], lw1[j] = ax, ay, 0, 0, base + half
+  spp[j], spv[j], svv[j], sfrom[j] = r2, 0, T.RATE, 0
+  if has2 then x2[j], y2[j], vx2[j], vy2[j], lw2[j] = bx, by, 0, 0, base - half end
+  return j
 end
 
--- The children's weights (relative to the best), and for smoothing the probability of the
--- previous frame's first candidate given each of this frame's: returns a, b.
-local function weigh(k, p_prev)
-  local clw, cw, cpick, cfrom = clw, cw, cpick, cfrom -- luacheck: ignore 431
+-- The children's weights (relative to the best), each candidate's children in order of
+-- weight, best first, in `run1` and `run2` (insertions, stable: the children come nearly in
+-- order, their parents kept best first; the runs' merge by weight is the order of all the
+-- children), and for smoothing the probability of the previous frame's first candidate given
+-- each of this frame's. Returns the runs' lengths and the two probabilities.
+local function weigh(ns, has2, p_prev)
+  -- luacheck: push ignore 431
+  local lw1, lw2, w1, w2, sfrom, run1, run2 = lw1, lw2, w1, w2, sfrom, run1, run2
+  -- luacheck: pop
   local top = -math.huge
-  for i = 1, k do
-    if clw[i] > top then top = clw[i] end
+  for j = 1, ns do
+    if lw1[j] > top then top = lw1[j] end
+    if has2 and lw2[j] > top then top = lw2[j] end
   end
   local j11, j12, j21, j22 = 0, 0, 0, 0
-  for i = 1, k do
-    local w = exp(clw[i] - top)
-    cw[i] = w
-    local from = cfrom[i]
-    if from == 0 then
-      -- a new path: its previous choice as the previous frame believed
-      if cpick[i] == 1 then
-        j11, j21 = j11 + w * p_prev, j21 + w * (1 - p_prev)
-      else
-        j12, j22 = j12 + w * p_prev, j22 + w * (1 - p_prev)
+  local n1, n2, wb = 0, 0, 0
+  for j = 1, ns do
+    -- (the insertions written out: a function call per child costs more than the sort)
+    local wa = exp(lw1[j] - top)
+    w1[j] = wa
+    local r = n1
+    while r >= 1 and w1[run1[r]] < wa do
+      run1[r + 1] = run1[r]
+      r = r - 1
+    end
+    run1[r + 1] = j
+    n1 = n1 + 1
+    if has2 then
+      wb = exp(lw2[j] - top)
+      w2[j] = wb
+      r = n2
+      while r >= 1 and w2[run2[r]] < wb do
+        run2[r + 1] = run2[r]
+        r = r - 1
       end
+      run2[r + 1] = j
+      n2 = n2 + 1
+    end
+    local from = sfrom[j]
+    if from == 0 then
+      -- the new paths: their previous choice as the previous frame believed
+      j11, j21 = j11 + wa * p_prev, j21 + wa * (1 - p_prev)
+      if has2 then j12, j22 = j12 + wb * p_prev, j22 + wb * (1 - p_prev) end
     elseif from == 1 then
-      if cpick[i] == 1 then j11 = j11 + w else j12 = j12 + w end
-    elseif cpick[i] == 1 then
-      j21 = j21 + w
+      j11 = j11 + wa
+      if has2 then j12 = j12 + wb end
     else
-      j22 = j22 + w
+      j21 = j21 + wa
+      if has2 then j22 = j22 + wb end
     end
   end
   local a, b = 0.5, 0.5
   if j11 + j21 > 0 then a = j11 / (j11 + j21) end
   if j12 + j22 > 0 then b = j12 / (j12 + j22) end
-  return a, b
+  return n1, n2, a, b
 end
 
--- The children of each candidate in order of weight, best first, ties in the order they were
--- made (a stable sort), in `run1` and `run2`: each candidate's children come nearly in order
--- already (their parents are kept best first), so an insertion sort of each is quick. Their
--- merge by weight (ties: the child made first) is the order of all the children.
-local run1, run2 = {}, {}
-
-local function sort(k)
-  local cw, cpick, run1, run2 = cw, cpick, run1, run2 -- luacheck: ignore 431
-  local n1, n2 = 0, 0
-  for i = 1, k do
-    local w = cw[i]
-    -- (an insertion written out: a function call per child costs more than the sort)
-    if cpick[i] == 1 then
-      local j = n1
-      while j >= 1 and cw[run1[j]] < w do
-        run1[j + 1] = run1[j]
-        j = j - 1
-      end
-      run1[j + 1] = i
-      n1 = n1 + 1
-    else
-      local j = n2
-      while j >= 1 and cw[run2[j]] < w do
-        run2[j + 1] = run2[j]
-        j = j - 1
-      end
-      run2[j + 1] = i
-      n2 = n2 + 1
-    end
-  end
-  return n1, n2
-end
-
--- Child i of candidate `pick` is merged into the first kept child of the same candidate that
+-- Child j of candidate `pick` is merged into the first kept child of the same candidate that
 -- coincides with it, or kept (as the m + 1-th, the c + 1-th of its candidate). Returns the
 -- counts after it.
-local function consider(i, pick, m, c, limit, r2)
-  local x, y, vx, vy = cx[i], cy[i], cvx[i], cvy[i]
+local function consider(j, pick, m, c, limit, r2)
+  local w, x, y, vx, vy = w1, x1[j], y1[j], vx1[j], vy1[j]
   local kx, ky, kvx, kvy, kr, ki = k1x, k1y, k1vx, k1vy, k1r, k1
-  if pick ~= 1 then kx, ky, kvx, kvy, kr, ki = k2x, k2y, k2vx, k2vy, k2r, k2 end
+  if pick ~= 1 then
+    w, x, y, vx, vy = w2, x2[j], y2[j], vx2[j], vy2[j]
+    kx, ky, kvx, kvy, kr, ki = k2x, k2y, k2vx, k2vy, k2r, k2
+  end
   for u = 1, c do
     -- (the sum's terms are not negative: one alone as large as the radius rules the child
     -- out, to the bit)
@@ -222,120 +217,143 @@ local function consider(i, pick, m, c, limit, r2)
       local dy, dvx, dvy = ky[u] - y, kvx[u] - vx, kvy[u] - vy
       if dx * dx + dy * dy + 0.01 * (dvx * dvx + dvy * dvy) < r then
         local into = ki[u]
-        cw[into] = cw[into] + cw[i]
+        w[into] = w[into] + w[j]
         return m, c
       end
     end
   end
   m, c = m + 1, c + 1
-  kept[m] = i
-  ki[c], kx[c], ky[c], kvx[c], kvy[c], kr[c] = i, x, y, vx, vy, limit * (cpp[i] + r2)
-  if not (cw[i] > TINY) then cw[i] = TINY end
+  kept[m] = pick == 1 and j or -j
+  ki[c], kx[c], ky[c], kvx[c], kvy[c], kr[c] = j, x, y, vx, vy, limit * (spp[j] + r2)
+  if not (w[j] > TINY) then w[j] = TINY end
   return m, c
 end
 
--- The next child in the order of all the children, from positions a and b of the runs (of
--- lengths n1 and n2): its index and the positions after it (nil when none is left).
-local function next_child(a, b, n1, n2)
-  if a > n1 then
-    if b > n2 then return nil end
-    return run2[b], a, b + 1
-  end
-  local i = run1[a]
-  if b > n2 then return i, a + 1, b end
-  local j = run2[b]
-  local wi, wj = cw[i], cw[j]
-  if wi > wj or (wi == wj and i < j) then return i, a + 1, b end
-  return j, a, b + 1
-end
-
 -- The first pass of step 3, best first: the children of a weight that is not zero in doubles,
--- until `room` are kept (`consider` and the merge of the runs written out: this is the
--- filter's innermost loop). Returns how many of each candidate are kept.
-local function first_pass(now, room, limit, r2, n1, n2)
+-- until `room` are kept (`consider` and the runs' merge written out, once per candidate: the
+-- filter's innermost loop). Returns how many of each candidate are kept and the places in the
+-- runs where it stopped (a child before them of a weight above `TINY` was considered).
+local function first_pass(room, limit, r2, n1, n2)
   -- luacheck: push ignore 431
-  local cw, cpick, cx, cy, cvx, cvy, cpp, kept, seen = cw, cpick, cx, cy, cvx, cvy, cpp, kept,
-    seen
-  local run1, run2 = run1, run2
+  local w1, w2, run1, run2, kept, spp = w1, w2, run1, run2, kept, spp
+  local k1, k1x, k1y, k1vx, k1vy, k1r = k1, k1x, k1y, k1vx, k1vy, k1r
+  local k2, k2x, k2y, k2vx, k2vy, k2r = k2, k2x, k2y, k2vx, k2vy, k2r
   -- luacheck: pop
   local m, c1, c2, a, b = 0, 0, 0, 1, 1
   while m < room do
-    local i
+    local first
     if a > n1 then
       if b > n2 then break end
-      i, b = run2[b], b + 1
+      first = false
     elseif b > n2 then
-      i, a = run1[a], a + 1
+      first = true
     else
-      local i1, i2 = run1[a], run2[b]
-      local w1, w2 = cw[i1], cw[i2]
-      if w1 > w2 or (w1 == w2 and i1 < i2) then i, a = i1, a + 1 else i, b = i2, b + 1 end
+      local ja, jb = run1[a], run2[b]
+      local wa, wb = w1[ja], w2[jb]
+      first = wa > wb or (wa == wb and ja <= jb)
     end
-    local w = cw[i]
-    if w > TINY then
-      seen[i] = now
-      local x, y, vx, vy = cx[i], cy[i], cvx[i], cvy[i]
-      local kx, ky, kvx, kvy, kr, ki, c = k1x, k1y, k1vx, k1vy, k1r, k1, c1
-      local pick = cpick[i]
-      if pick ~= 1 then kx, ky, kvx, kvy, kr, ki, c = k2x, k2y, k2vx, k2vy, k2r, k2, c2 end
-      local into = nil
-      for u = 1, c do
-        local dx, r = kx[u] - x, kr[u]
-        if dx * dx < r then
-          local dy, dvx, dvy = ky[u] - y, kvx[u] - vx, kvy[u] - vy
-          if dx * dx + dy * dy + 0.01 * (dvx * dvx + dvy * dvy) < r then
-            into = ki[u]
-            break
+    if first then
+      local j = run1[a]
+      a = a + 1
+      local w = w1[j]
+      if w > TINY then
+        local x, y, vx, vy, into = x1[j], y1[j], vx1[j], vy1[j], nil
+        for u = 1, c1 do
+          local dx, r = k1x[u] - x, k1r[u]
+          if dx * dx < r then
+            local dy, dvx, dvy = k1y[u] - y, k1vx[u] - vx, k1vy[u] - vy
+            if dx * dx + dy * dy + 0.01 * (dvx * dvx + dvy * dvy) < r then
+              into = k1[u]
+              break
+            end
           end
         end
+        if into then
+          w1[into] = w1[into] + w
+        else
+          m, c1 = m + 1, c1 + 1
+          kept[m] = j
+          k1[c1], k1x[c1], k1y[c1], k1vx[c1], k1vy[c1], k1r[c1] = j, x, y, vx, vy,
+            limit * (spp[j] + r2)
+        end
       end
-      if into then
-        cw[into] = cw[into] + w
-      else
-        m, c = m + 1, c + 1
-        kept[m] = i
-        ki[c], kx[c], ky[c], kvx[c], kvy[c], kr[c] = i, x, y, vx, vy, limit * (cpp[i] + r2)
-        if pick == 1 then c1 = c else c2 = c end
+    else
+      local j = run2[b]
+      b = b + 1
+      local w = w2[j]
+      if w > TINY then
+        local x, y, vx, vy, into = x2[j], y2[j], vx2[j], vy2[j], nil
+        for u = 1, c2 do
+          local dx, r = k2x[u] - x, k2r[u]
+          if dx * dx < r then
+            local dy, dvx, dvy = k2y[u] - y, k2vx[u] - vx, k2vy[u] - vy
+            if dx * dx + dy * dy + 0.01 * (dvx * dvx + dvy * dvy) < r then
+              into = k2[u]
+              break
+            end
+          end
+        end
+        if into then
+          w2[into] = w2[into] + w
+        else
+          m, c2 = m + 1, c2 + 1
+          kept[m] = -j
+          k2[c2], k2x[c2], k2y[c2], k2vx[c2], k2vy[c2], k2r[c2] = j, x, y, vx, vy,
+            limit * (spp[j] + r2)
+        end
       end
     end
   end
-  return c1, c2
+  return c1, c2, a, b
+end
+
+-- The next child in the order of all the children, from places a and b of the runs (of
+-- lengths n1 and n2): its slot, its candidate and the places after it (nil when none is left).
+local function next_child(a, b, n1, n2)
+  if a > n1 then
+    if b > n2 then return nil end
+    return run2[b], 2, a, b + 1
+  end
+  local ja = run1[a]
+  if b > n2 then return ja, 1, a + 1, b end
+  local jb = run2[b]
+  local wa, wb = w1[ja], w2[jb]
+  if wa > wb or (wa == wb and ja <= jb) then return ja, 1, a + 1, b end
+  return jb, 2, a, b + 1
 end
 
 -- Step 3: merge the children that coincide into the better, keep the best, leaving `RESERVE`
 -- places to the best of the candidate the others did not choose. Returns how many are kept
 -- (in `kept`).
 local function merge(T, r2, n1, n2)
-  stamp = stamp + 1
-  local now = stamp
   local limit, hypotheses, reserve = T.MERGE * T.MERGE, T.HYPOTHESES, T.RESERVE
-  local c1, c2 = first_pass(now, hypotheses - reserve, limit, r2, n1, n2)
+  local c1, c2, stop1, stop2 = first_pass(hypotheses - reserve, limit, r2, n1, n2)
   local m = c1 + c2
   -- the second: the best of a candidate with fewer than `reserve` kept (the children of the
-  -- other then do not fit: a candidate's own run is its part of the order)
+  -- other then do not fit: a candidate's own run is its part of the order), of those the
+  -- first pass did not consider
   if c1 >= reserve and c2 >= reserve then return m end
-  local run, n, pick = run1, n1, 1
-  if c1 >= reserve then run, n, pick = run2, n2, 2 end
   if c1 < reserve and c2 < reserve then
     -- both: the order of all the children
-    local i, a, b = next_child(1, 1, n1, n2)
-    while i and m < hypotheses do
-      if seen[i] ~= now then
-        if cpick[i] == 1 then
-          if c1 < reserve then m, c1 = consider(i, 1, m, c1, limit, r2) end
-        elseif c2 < reserve then
-          m, c2 = consider(i, 2, m, c2, limit, r2)
+    local j, pick, a, b = next_child(1, 1, n1, n2)
+    while j and m < hypotheses do
+      if pick == 1 then
+        if c1 < reserve and not (a - 1 < stop1 and w1[j] > TINY) then
+          m, c1 = consider(j, 1, m, c1, limit, r2)
         end
+      elseif c2 < reserve and not (b - 1 < stop2 and w2[j] > TINY) then
+        m, c2 = consider(j, 2, m, c2, limit, r2)
       end
-      i, a, b = next_child(a, b, n1, n2)
+      j, pick, a, b = next_child(a, b, n1, n2)
     end
     return m
   end
-  local c = pick == 1 and c1 or c2
+  local run, n, pick, c, stop, w = run1, n1, 1, c1, stop1, w1
+  if c1 >= reserve then run, n, pick, c, stop, w = run2, n2, 2, c2, stop2, w2 end
   for r = 1, n do
     if m >= hypotheses or c >= reserve then break end
-    local i = run[r]
-    if seen[i] ~= now then m, c = consider(i, pick, m, c, limit, r2) end
+    local j = run[r]
+    if not (r < stop and w[j] > TINY) then m, c = consider(j, pick, m, c, limit, r2) end
   end
   return m
 end
@@ -343,23 +361,33 @@ end
 -- Step 4: the kept children as the new state; returns the candidate to return and its
 -- posterior.
 local function emit(out, m, time, s2, a, b)
-  local kept, cw, cpick = kept, cw, cpick -- luacheck: ignore 431
+  local kept, w1, w2 = kept, w1, w2 -- luacheck: ignore 431
   local total, first = 0, 0
   for u = 1, m do
-    local i = kept[u]
-    local w = cw[i]
-    total = total + w
-    if cpick[i] == 1 then first = first + w end
+    local j = kept[u]
+    if j > 0 then
+      local w = w1[j]
+      total = total + w
+      first = first + w
+    else
+      total = total + w2[-j]
+    end
   end
   local p1 = first / total
   out.time, out.sigma2, out.first, out.back_first, out.back_second, out.count = time, s2, p1, a,
     b, m
   local h = out.hypotheses
   for u = 1, m do
-    local i, o = kept[u], (u - 1) * 9
-    h[o + 1], h[o + 2], h[o + 3], h[o + 4] = cx[i], cy[i], cvx[i], cvy[i]
-    h[o + 5], h[o + 6], h[o + 7] = cpp[i], cpv[i], cvv[i]
-    h[o + 8], h[o + 9] = log(cw[i] / total), cpick[i]
+    local j, o = kept[u], (u - 1) * 9
+    if j > 0 then
+      h[o + 1], h[o + 2], h[o + 3], h[o + 4] = x1[j], y1[j], vx1[j], vy1[j]
+      h[o + 8], h[o + 9] = log(w1[j] / total), 1
+    else
+      j = -j
+      h[o + 1], h[o + 2], h[o + 3], h[o + 4] = x2[j], y2[j], vx2[j], vy2[j]
+      h[o + 8], h[o + 9] = log(w2[j] / total), 2
+    end
+    h[o + 5], h[o + 6], h[o + 7] = spp[j], spv[j], svv[j]
   end
   for i = m * 9 + 1, #h do h[i] = nil end
   if p1 >= 0.5 then return 1, p1 end
@@ -400,10 +428,10 @@ function M.step(T, prev, a, b, size, time, out, llr)
   if not prev or prev.count == 0 then
     pick, p = start(T, out, now, s2, ax, ay, bx, by, r2, has2, ev)
   else
-    local k = branch(T, prev, dt, ax, ay, bx, by, has2, r2, 0.5 * ev, z1r, z1i, z2r, z2i,
+    local slots = branch(T, prev, dt, ax, ay, bx, by, has2, r2, 0.5 * ev, z1r, z1i, z2r, z2i,
       rho * rho)
-    local back_first, back_second = weigh(k, prev.first)
-    local m = merge(T, r2, sort(k))
+    local n1, n2, back_first, back_second = weigh(slots, has2, prev.first)
+    local m = merge(T, r2, n1, n2)
     pick, p = emit(out, m, now, s2, back_first, back_second)
     if not (p == p) then
       -- a state the caller damaged (not a number in it): start again from this frame

@@ -19,10 +19,12 @@
 --   points) is skipped and reported with a reason, never raised: a detector's glitch never
 --   stops the robot.
 --
--- The tracker keeps its own state for every track (the filter's, the image position): the
--- poses it returns are the caller's to keep or change. With `options.smooth`, it also keeps
--- four numbers per detection so that `tracker:smooth()` can revise every choice with the
--- evidence of the later frames (`tagpose.tracker.smooth`): for replaying a recorded log.
+-- The tracker keeps its own state for every track (the filter's, the image position) and its
+-- own copy of the camera, compared with the caller's at each frame (a camera changed is checked
+-- again and followed): the poses it returns are the caller's to keep or change. With
+-- `options.smooth`, it also keeps four numbers per detection so that `tracker:smooth()` can
+-- revise every choice with the evidence of the later frames (`tagpose.tracker.smooth`): for
+-- replaying a recorded log.
 --
 -- Times are in seconds (times that look like milliseconds are said once on standard error,
 -- and in `warning`); pixels as the camera's; lengths in the unit of the tag size.
@@ -32,14 +34,14 @@ local args = require("tagpose.core.args")
 local camera_model = require("tagpose.core.camera")
 local compat = require("tagpose.core.compat")
 local pipeline = require("tagpose.core.pipeline")
-local result = require("tagpose.core.result")
+local result = require("tagpose.result")
 local solvequad = require("tagpose.core.solvequad")
 local track = require("tagpose.track")
 local tracks = require("tagpose.tracker.tracks")
 local associate = require("tagpose.tracker.associate")
 local smooth = require("tagpose.tracker.smooth")
 
-local sqrt = math.sqrt
+local finish = result.finish
 local centre_and_side = associate.centre_and_side
 local is_finite, describe, size_of = compat.is_finite, args.describe, args.size_of
 
@@ -133,13 +135,19 @@ local function read_options(self, options)
   end
   self.opencv = opencv
   self.seed, self.max_gap, self.max_tracks = method == "seed", max_gap, max_tracks
-  self.sigma2 = sigma and sigma * sigma or nil
   self.recording = options.smooth == true
+  if self.recording then self.recorded = {} end
+  -- what the end of every solve is told (`tagpose.result`): the tracker's own, σ² for the
+  -- covariance included, which also keeps the noise measured on its tracks so far
+  local ctx = result.context(self.work)
+  ctx.seed, ctx.sigma2, ctx.in_place = self.seed, sigma and sigma * sigma or false, true
+  self.context = ctx
 end
 
 --- A tracker for one camera.
 -- @tparam table camera `{fx =, fy =, cx =, cy =}` (pixels; optionally `distortion`, `model`),
---   as for `tagpose.solve`
+--   as for `tagpose.solve`; the tracker keeps a copy (a camera changed afterwards needs a new
+--   tracker)
 -- @tparam number|table tag_size side of the tags' black square, or a table
 --   `{[id] = size, default = size}` (a detection whose id has no size, and no default, is
 --   skipped with a reason)
@@ -169,13 +177,15 @@ function M.new(camera, tag_size, options)
   problem = check_sizes(tag_size)
   if problem then raise(2, "new", problem) end
   local self = setmetatable({
-    camera = camera,
+    camera = camera_model.copy(camera), -- what the solves use
+    given = camera, -- the caller's camera, compared with the copy at each frame
     tag_size = tag_size,
+    size = type(tag_size) ~= "table" and tag_size or nil, -- the size of every id, if one
     next_track = 1, -- the next track id (never reused)
     rows = 0, -- detections fed so far
     work = pipeline.new(), -- the pipeline's workspace
-    -- per entry of a frame (reused): id, centre, side, corners (flat)
-    ids = {}, us = {}, vs = {}, ss = {}, pxs = {}, match = {},
+    -- per entry of a frame (reused): id, centre, side, corners (flat), why it is malformed
+    ids = {}, us = {}, vs = {}, ss = {}, pxs = {}, why = {}, match = {},
   }, Tracker)
   read_options(self, options)
   self:reset()
@@ -234,37 +244,21 @@ local function solve(self, i, t, size, time)
   local half, camera = 0.5 * size, self.camera
   local ok, why = pipeline.prepare(w, camera)
   if not ok then return nil, why end
+  local state = false -- the track's filter state (none with the report's method)
   if self.seed then
     ok, why = pipeline.seed(w, half, solvequad.TOLERANCE, solvequad.MAX_ITERATIONS)
-    if not ok then return nil, why end
-    local err
-    err, why = pipeline.finish_seed(w, camera, half)
-    if not err then return nil, why end
-    return result.new(w.first, err, nil, nil, w.iterations, nil, nil, camera, half, self.sigma2,
-      self.ss[i], time), 1, 0.5, 0.5
+  else
+    ok, why = pipeline.refined(w, half, pipeline.REFINED_TOLERANCE, solvequad.MAX_ITERATIONS)
+    state = t and t.state or track.new_state()
   end
-  ok, why = pipeline.refined(w, half, pipeline.REFINED_TOLERANCE, solvequad.MAX_ITERATIONS)
-  if ok then ok, why = pipeline.finite(w) end
   if not ok then return nil, why end
-  local a, b = w.first, w.count == 2 and w.second or nil
-  local ea, eb = sqrt(a.sse / 4), b and sqrt(b.sse / 4)
-  local state = t and t.state or track.new_state()
-  local started = state.count == 0
-  -- a new track starts from the noise the tracker measured on its tracks so far (none: the
-  -- single-frame default)
-  if started then state.sigma2, state.dof = self.noise or 0, self.noise_dof or 0 end
-  local pick, p = track.step(state, a, b, self.ss[i], time, state)
-  if pick == 2 then a, b, ea, eb = b, a, eb, ea end
-  self.noise, self.noise_dof = track.noise(self.noise or 0, self.noise_dof or 0, a.sse)
-  -- σ² for the covariance: the tracker's σ, else what the track's running estimate with this
-  -- frame says of it (a track's first frame: the tracker's estimate pooled with the frame, the
-  -- single frame's default on the tracker's first); a track's first confidence is the single
-  -- frame's at that σ², after that the filter's posterior
-  local sigma2 = self.sigma2 or track.noise_mean(state.sigma2, state.dof)
-  local r = result.new(a, ea, b, eb, w.iterations, w.linearisations, b and b.linearisations,
-    camera, half, sigma2, self.ss[i], time)
-  if b and not started then result.set_confidence(r, track.confidence(p)) end
-  return r, state.first, state.back_first, state.back_second, state
+  local ctx = self.context
+  ctx.camera, ctx.half, ctx.side, ctx.time, ctx.prior = camera, half, self.ss[i], time, state
+  local p
+  p, why = finish(ctx)
+  if not p then return nil, why end
+  if not state then return p, 1, 0.5, 0.5 end
+  return p, state.first, state.back_first, state.back_second, state
 end
 
 -- Continue track t with entry i (seen at `time`), or start a new track; returns it.
@@ -284,34 +278,27 @@ local function advance(self, i, id, t, time)
     t.dv = (1 - m) * t.dv + m * (v - t.v) / dt
   end
   t.u, t.v, t.side, t.time = u, v, self.ss[i], time
-  tracks.touch(self.live, t)
+  if self.live.newest ~= t then tracks.touch(self.live, t) end
   return t, false
 end
 
--- Entry i of the frame, well formed, continuing track t (or nil): its entry of the result (and
--- with a pose, its smoothing record). False when it is skipped (no tag size for its id).
-local function detection(self, i, id, t, time, row, entry)
-  local size = size_of(self.tag_size, id)
-  if not size then
-    entry.reason = "tracker: no tag size for id " .. tostring(id)
-    return false
-  end
-  local w, px = self.work, self.pxs[i]
-  for k = 1, 8 do w.px[k] = px[k] end
+-- Entry i of the frame, well formed (its id), continuing track t (or nil): the number of its
+-- track, true when the track starts here, and its pose or the reason it has none (with a
+-- pose, its smoothing record is kept); no track for an id without a tag size (skipped).
+local function detection(self, i, id, t, time, row)
+  local size = self.size or size_of(self.tag_size, id)
+  if not size then return nil, nil, nil, "tracker: no tag size for id " .. tostring(id) end
+  -- (the pipeline reads the corners where read_entry put them)
+  self.work.px = self.pxs[i]
   local p, first, a, b, state -- (none when only assigning tracks)
   if self.solving then p, first, a, b, state = solve(self, i, t, size, time) end
   local new
   t, new = advance(self, i, id, t, time)
   if state then t.state = state end
-  entry.track, entry.new = t.number, new
-  if p then
-    entry.pose = p
-    if self.recording then smooth.record(self.recorded, row, t.row, first, a, b) end
-    t.row = row
-  else
-    entry.reason = args.name_order(first, CALL)
-  end
-  return true
+  if not p then return t.number, new, nil, args.name_order(first, CALL) end
+  if self.recording then smooth.record(self.recorded, row, t.row, first, a, b) end
+  t.row = row
+  return t.number, new, p, nil
 end
 
 -- A time step that looks like milliseconds or frame numbers: steps beyond max_gap at a
@@ -343,11 +330,16 @@ local function feed(self, detections, time, fname, solving)
   if time ~= nil and not is_finite(time) then
     args.raise(2, fname, "finite number expected for time, got " .. describe(time), 3)
   end
-  local problem = camera_model.check(self.camera)
-  if problem then args.raise(0, fname, "the tracker's camera was changed: " .. problem, 3) end
+  local given = self.given
+  if not camera_model.same(given, self.camera) then
+    -- the caller changed the camera: checked as at new, and followed
+    local problem = camera_model.check(given)
+    if problem then args.raise(0, fname, "the tracker's camera was changed: " .. problem, 3) end
+    self.camera = camera_model.copy(given)
+  end
   self.solving = solving
   -- (room for one entry, the common frame, made with the array: filled key by key a table's
-  -- parts grow through a resize at each power of two; the entries are made with all their keys)
+  -- parts grow through a resize at each power of two; each entry is made whole, at once)
   local seen = { nil, skipped = 0 }
   if time == nil then time = (self.time or 0) + track.FRAME end
   if self.time and time < self.time then
@@ -362,30 +354,33 @@ local function feed(self, detections, time, fname, solving)
   end
   self.time = time
   self.frames = self.frames + 1
-  tracks.expire(self.live, time, self.max_gap)
+  local live = self.live
+  local oldest = live.oldest
+  if oldest and time - oldest.time > self.max_gap then tracks.expire(live, time, self.max_gap) end
   local n = #detections
   local base = self.rows
   self.rows = base + n
-  if self.recording and not self.recorded then self.recorded = {} end
+  local ids, why = self.ids, self.why
+  for i = 1, n do why[i] = read_entry(self, detections[i], i) end
+  local match = associate.assign(live, n, ids, self.us, self.vs, self.ss, time, M.GATE,
+    self.match, self.frames)
+  local skipped, recording = 0, self.recording
   for i = 1, n do
-    local det = detections[i]
-    local why = read_entry(self, det, i)
-    local id = nil
-    if type(det) == "table" and det.id == det.id then id = det.id end
-    seen[i] = { index = i, id = id, track = nil, new = nil, pose = nil, reason = why }
-  end
-  local match = associate.assign(self.live, n, self.ids, self.us, self.vs, self.ss, time,
-    M.GATE, self.match, self.frames)
-  for i = 1, n do
-    local entry, id = seen[i], self.ids[i]
-    local tracked = id ~= nil and detection(self, i, id, match[i], time, base + i, entry)
-    if not tracked then seen.skipped = seen.skipped + 1 end
-    -- (a row without a pose: malformed, skipped, or no pose from its corners)
-    if self.recording and not entry.pose then
-      smooth.record(self.recorded, base + i, 0, -1, 0.5, 0.5)
+    local id, number, new, pose, reason = ids[i], nil, nil, nil, why[i]
+    if id ~= nil then
+      number, new, pose, reason = detection(self, i, id, match[i], time, base + i)
+    else
+      local det = detections[i]
+      if type(det) == "table" and det.id == det.id then id = det.id end
     end
+    -- (skipped: malformed, or no tag size for its id)
+    if number == nil then skipped = skipped + 1 end
+    seen[i] = { index = i, id = id, track = number, new = new, pose = pose, reason = reason }
+    -- (a row without a pose: malformed, skipped, or no pose from its corners)
+    if recording and not pose then smooth.record(self.recorded, base + i, 0, -1, 0.5, 0.5) end
   end
-  tracks.evict(self.live, self.max_tracks)
+  seen.skipped = skipped
+  if live.count > self.max_tracks then tracks.evict(live, self.max_tracks) end
   return seen
 end
 

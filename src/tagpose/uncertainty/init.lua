@@ -18,12 +18,12 @@
 -- far or nearly face-on, and whose truth lies more often towards the other minimum). How much
 -- comes from the ambiguity's tilt-plane model (`tagpose.uncertainty.model`). The branch
 -- probability is the two basins' posterior masses (Laplace at each minimum, a tilt prior
--- uniform in angle, the same model's correction for the barrier), its far tail softened by
--- `SPREAD`.
+-- uniform in angle, the same model's correction for the barrier), its middle range held back
+-- by `SPREAD`.
 --
 -- The branch probability (`assess`) is cheap: the factors of each H and one quadratic form
 -- each. A covariance costs a full inverse and its table. This module is loaded on demand: a
--- pose's `confidence` and `covariance` are made when first read (`tagpose.core.result`).
+-- pose's `confidence` and `covariance` are made when first read (`tagpose.result.pose`).
 -- @module tagpose.uncertainty
 
 local compat = require("tagpose.core.compat")
@@ -52,13 +52,20 @@ M.DEFAULT_DOF = 8
 --- Weight of one frame's branch log-odds L (a fractional likelihood; 1: the evidence as is).
 -- Fitted by maximum likelihood on 133 000 synthetic ambiguous rows it is 0.95 ± 0.05.
 M.KAPPA = 1
---- Relative error of L: the confidence is the logistic function of L averaged over
--- L (1 + ε), ε ~ N(0, SPREAD²) (by the probit approximation,
--- `1 / (1 + exp(-z / sqrt(1 + π SPREAD² z² / 8)))`, z = KAPPA L). It caps a confidence at
--- about 0.995: the Laplace evidence is over-confident in its far tail on small noisy tags
--- (docs/uncertainty.md measures it), where a wrong branch at a confidence of 0.95 or more
--- costs a robot most.
+--- Relative error of L: the confidence is the logistic function of L averaged over an error
+-- of L of standard deviation `min(SPREAD |L|, SPREAD_LIMIT)` (by the probit approximation,
+-- `1 / (1 + exp(-z / sqrt(1 + π e² / 8)))`, z = KAPPA L, e = min(SPREAD |z|, SPREAD_LIMIT)).
+-- It holds back the confidences of the middle range, where the model's evidence is
+-- over-confident on small noisy tags (docs/uncertainty.md measures it) and a wrong branch at a
+-- confidence of 0.95 or more costs a robot most.
 M.SPREAD = 0.3
+--- The largest standard deviation of L's error (log-odds): what the evidence approximates (the
+-- barrier's correction, the tilt prior, the Laplace masses) is a few units at most, and the rows
+-- decided by their residuals are right at least as often as L says. Without it the spread would
+-- cap every confidence at 0.995 (on synthetic draws the rows it held at 0.99-0.995 were wrong
+-- 2 times in 545 000); at 1.1 it acts from L = 3.67 on (a confidence of 0.953), so that every
+-- confidence below 0.95 is as before.
+M.SPREAD_LIMIT = 1.1
 
 -- below this sine of the tilt (0.06°) a candidate is face-on: no tilt direction
 local FACE_ON = 1e-3
@@ -207,13 +214,19 @@ function M.log_odds(a, b, sigma2)
 end
 
 --- The confidence of a branch whose log-odds are L: the logistic function of `KAPPA` L with
--- the spread `SPREAD` (see there).
+-- the spread `SPREAD` up to `SPREAD_LIMIT` (see there).
 -- @tparam number L log-odds (`log_odds`)
 -- @treturn number the probability, in [0, 1]
 function M.probability(L)
   local z = M.KAPPA * L
   local t = M.SPREAD
-  if t > 0 then z = z / sqrt(1 + 0.39269908169872414 * t * t * z * z) end
+  if t > 0 then
+    -- π/8 times the error's variance, (SPREAD z)² up to SPREAD_LIMIT²
+    local e, limit = 0.39269908169872414 * t * t * z * z, M.SPREAD_LIMIT
+    local most = 0.39269908169872414 * limit * limit
+    if not (e < most) then e = most end
+    z = z / sqrt(1 + e)
+  end
   if not (z == z) then return 0.5 end
   return 1 / (1 + exp(-z))
 end

@@ -1,4 +1,4 @@
---- A result's confidence and covariance in passes of locals: what `tagpose.core.result` makes
+--- A result's confidence and covariance in passes of locals: what `tagpose.result.pose` makes
 -- on read, on PUC Lua. The same arithmetic as `tagpose.uncertainty`'s `assess` and
 -- `covariance` (and `tagpose.uncertainty.matrix`'s factors, inverse and table), operation for
 -- operation, so the numbers are the same to the bit; only where they are kept differs: in
@@ -7,7 +7,7 @@
 -- LuaJIT, whose traces do not take this many live locals, the two functions are
 -- `tagpose.uncertainty.read_jit`'s.)
 --
--- It reads the array part of a result's metatable, laid out by `tagpose.core.result`: half the
+-- It reads the array part of a result's metatable, laid out by `tagpose.result.pose`: half the
 -- tag side at 2, σ² (or false) at 3, the pose table at 6, its checksum at 7, H of each
 -- candidate (21 numbers, `tagpose.core.lsq`'s layout) at 8..28 and 29..49, their residual sums
 -- at 50 and 51, the other candidate's flat rotation at 52..60, its position at 61..63, its
@@ -27,7 +27,7 @@ local lookup = model.lookup
 
 local M = {}
 
--- the slots of the metatable and of the record (`tagpose.core.result`)
+-- the slots of the metatable and of the record (`tagpose.result.pose`)
 local SIGMA2, FIRST, CHECK, SSE_A, SSE_B, ERR_B = 3, 6, 7, 50, 51, 68
 local X_K_A, X_K_B, X_KAPPA, X_SIGMA2 = 3, 4, 14, 36
 

@@ -10,7 +10,7 @@
 -- otherwise take in the whole read (some 2000 instructions of LuaJIT's IR) and, at the end of
 -- a solve in a loop, grow too long to compile and fall back to the interpreter.
 --
--- The layout it reads and writes is `tagpose.uncertainty.read`'s (and `tagpose.core.result`'s):
+-- The layout it reads and writes is `tagpose.uncertainty.read`'s (and `tagpose.result.pose`'s):
 -- the metatable's σ² (or false) at 3, the pose table at 6, its checksum at 7, H of each
 -- candidate at 8..28 and 29..49, their residual sums at 50 and 51, the other candidate's flat
 -- rotation at 52..60, position at 61..63, quaternion at 64..67, error (false: one minimum) at
@@ -31,7 +31,7 @@ local lookup, variance, noise, probability = model.lookup, matrix.variance, unce
 
 local M = {}
 
--- the slots of the metatable and of the record (`tagpose.core.result`)
+-- the slots of the metatable and of the record (`tagpose.result.pose`)
 local SIGMA2, FIRST, CHECK, SSE_A, SSE_B, ERR_B = 3, 6, 7, 50, 51, 68
 local H_A, H_B = 7, 28
 local X_K_A, X_K_B, X_KAPPA, X_SIGMA2 = 3, 4, 14, 36

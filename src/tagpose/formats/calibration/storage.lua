@@ -24,16 +24,6 @@ local NULL, TAG = yaml.NULL, yaml.TAG
 
 local M = {}
 
--- the lines that s[from..to - 1] ends, added to line
-local function count_lines(s, from, to, line)
-  local nl = find(s, "\n", from, true)
-  while nl and nl < to do
-    line = line + 1
-    nl = find(s, "\n", nl + 1, true)
-  end
-  return line
-end
-
 -- the value of one token as written (a quoted string, or a number, or a plain string)
 local function token_value(r, raw, quoted, line)
   local s, why = xml.unescape(raw)
@@ -49,13 +39,19 @@ local function token_value(r, raw, quoted, line)
   return v == nil and s or v
 end
 
--- the values of a text starting on line, appended to seq (their lines to lines)
+-- the values of a text starting on line, appended to seq (their lines to lines); the line
+-- ends are counted once each as the reading moves forward (`nl`: the next one not counted),
+-- so that a text of one long line is read in time linear in its length
 local function tokens(r, s, line, seq, lines)
   local i = 1
+  local nl = find(s, "\n", 1, true)
   while true do
     local a = find(s, "[^ \t\r\n]", i)
     if not a then return end
-    line = count_lines(s, i, a, line)
+    while nl and nl < a do
+      line = line + 1
+      nl = find(s, "\n", nl + 1, true)
+    end
     local e, v
     if byte(s, a) == 34 then -- "
       e = find(s, '"', a + 1, true)
@@ -66,7 +62,6 @@ local function tokens(r, s, line, seq, lines)
       v = token_value(r, sub(s, a, e), false, line)
     end
     seq[#seq + 1], lines[#lines + 1] = v, line
-    line = count_lines(s, a, e + 1, line)
     i = e + 1
   end
 end

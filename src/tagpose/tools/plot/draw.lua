@@ -1,6 +1,7 @@
 --- The figure of what a recorder holds (see `tagpose.tools.plot.draw`, which this is): the
 -- tracks' styles (colour, then marker), the series in order, the position and rotation
--- panels, and the legend of what is drawn.
+-- panels with the ±2σ bands of the series that have deviations, the confidence strip, and
+-- the legend of what is drawn.
 -- @module tagpose.tools.plot.draw
 
 local recorder_model = require("tagpose.tools.plot.recorder")
@@ -76,18 +77,38 @@ local function series_in_order(recorder)
   return series
 end
 
--- the panel of value c of every series
+-- the panel of value c of every series (with its band where the series has deviations);
+-- the confidence's panel (c = nv + 1) has only the series that have one
 local function panel(recorder, series, c, name, title, unit, wrap)
   local p = { name = name, title = title, unit = unit, series = {} }
+  local strip = c > recorder.nv
   for _, s in ipairs(series) do
-    local src = recorder.sources[s.source] or { label = tostring(s.source) }
-    local xs, ys = recorder_model.series_xy(s, c)
-    p.series[#p.series + 1] = { x = xs, y = ys,
-      colour = s.source == 1 and s.track.colour or darker(s.track.colour, 0.45),
-      dash = src.dash, width = s.source == 1 and 1.5 or 1.6, tag = tostring(s.tag),
-      source = src.label, wrap = wrap, marker = s.track.marker }
+    if not strip or s.nc > recorder.nv then
+      local src = recorder.sources[s.source] or { label = tostring(s.source) }
+      local xs, ys = recorder_model.series_xy(s, c)
+      local e = { x = xs, y = ys, gap_x = not s.width and s.f or nil,
+        colour = s.source == 1 and s.track.colour or darker(s.track.colour, 0.45),
+        dash = src.dash, width = s.source == 1 and 1.5 or 1.6, tag = tostring(s.tag),
+        source = src.label, wrap = wrap, marker = s.track.marker }
+      if not strip then
+        local bx, lo, hi = recorder_model.band_xy(s, c)
+        if bx then e.band = { x = bx, lo = lo, hi = hi, gap_x = e.gap_x } end
+      end
+      p.series[#p.series + 1] = e
+    end
   end
   return p
+end
+
+-- whether a series has a finite confidence
+local function has_confidence(recorder, s)
+  local c = recorder.nv + 1
+  if s.nc < c then return false end
+  local values = s.width and s.mn[c] or s.v[c]
+  for i = 1, s.n do
+    if values[i] == values[i] then return true end
+  end
+  return false
 end
 
 -- the legend: the tracks drawn (at most max_legend, the rest summed up), then the sources
@@ -143,8 +164,19 @@ function M.draw(recorder, options, settings)
   for k, r in ipairs(recorder_model.ROTATION[recorder.rotation]) do
     right[#right + 1] = panel(recorder, series, 3 + k, r.name, r.title, r.unit, r.wrap)
   end
-  for _, p in ipairs(left) do p.empty = options.empty end
-  for _, p in ipairs(right) do p.empty = options.empty end
+  -- the confidence, a strip under the position, when a series has one
+  for _, s in ipairs(series) do
+    if has_confidence(recorder, s) then
+      local strip = panel(recorder, series, recorder.nv + 1, "confidence", "confidence")
+      strip.range, strip.height = { -0.05, 1.05 }, settings.STRIP_HEIGHT
+      left[#left + 1] = strip
+      break
+    end
+  end
+  local x_label = recorder.x == "time" and "time (s)" or "frame"
+  for _, column in ipairs({ left, right }) do
+    for _, p in ipairs(column) do p.empty, p.x_label = options.empty, x_label end
+  end
   local entries = legend(recorder, tracks, series, options.max_legend or 60)
   local svg, shown = figure.figure({ title = options.title, columns = { left, right },
     legend = entries, width = options.width, panel_height = options.panel_height })

@@ -30,6 +30,9 @@ local function check_panel(p, where)
     and is_finite(p.range[2]) and p.range[2] > p.range[1]) then
     return where .. ".range: {lo, hi} with lo < hi expected"
   end
+  if p.height ~= nil and not (is_finite(p.height) and p.height >= 20) then
+    return where .. ".height: number >= 20 expected, got " .. args.describe(p.height)
+  end
   return nil
 end
 
@@ -74,6 +77,17 @@ local function x_range(fig)
   return xlo - pad, xhi + pad
 end
 
+-- what the horizontal axis's labels count from: 0, or for values far from 0 beside their
+-- span (the times of a clock since 1970: 1700000000 to 1700000010) a round number at or
+-- below the first tick, a multiple of the power of ten above the span, so that the labels
+-- stay short
+local function x_offset(x0, x1, first)
+  local span = x1 - x0
+  if not (span > 0) or math.max(math.abs(x0), math.abs(x1)) < 1e4 * span then return 0 end
+  local unit = 10 ^ ceil(math.log(span) / math.log(10))
+  return floor(first / unit) * unit
+end
+
 -- the title and the legend above the panels: their SVG lines and the panels' top
 local function head(fig, margin, width)
   local top = margin
@@ -93,7 +107,7 @@ end
 local function label_chars(column, panel_height)
   local n = 1
   for _, p in ipairs(column) do
-    local _, _, ticks, decimals = scale.panel_range(p, panel_height)
+    local _, _, ticks, decimals = scale.panel_range(p, p.height or panel_height)
     for _, v in ipairs(ticks) do n = max(n, #scale.label(v, decimals)) end
   end
   return n
@@ -107,17 +121,18 @@ local function columns(fig, defs, body, l)
     local cell_left = l.margin + (c - 1) * (l.cell + l.gutter)
     local left = cell_left + label_chars(column, l.panel_height) * CHAR + 10
     local plot_width = cell_left + l.cell - left
+    local ptop = l.top
     for r, p in ipairs(column) do
       panels = panels + 1
       series = series + #p.series
       local id = tostring(p.name or (c .. "-" .. r)):gsub("[^%w_%-]", "_")
-      local ptop = l.top + (r - 1) * l.row_height
+      local height = p.height or l.panel_height
       defs[#defs + 1] = ('<clipPath id="clip-%s"><rect x="%s" y="%s" width="%s" height="%s"/>'
-        .. '</clipPath>'):format(id, coord(left), coord(ptop), coord(plot_width),
-        coord(l.panel_height))
+        .. '</clipPath>'):format(id, coord(left), coord(ptop), coord(plot_width), coord(height))
       svg.panel(body, p, { id = id, left = left, top = ptop, width = plot_width,
-        height = l.panel_height, x0 = l.x0, x1 = l.x1, x_ticks = l.x_ticks,
-        x_decimals = l.x_decimals, bottom = r == #column })
+        height = height, x0 = l.x0, x1 = l.x1, x_ticks = l.x_ticks,
+        x_decimals = l.x_decimals, x_offset = l.x_offset, bottom = r == #column })
+      ptop = ptop + height + l.below
     end
   end
   return panels, series
@@ -132,16 +147,23 @@ function M.figure(fig)
   if problem then args.raise(1, "figure", problem, 2) end
   local width = fig.width or 1000
   local l = { panel_height = fig.panel_height or 150, margin = 16, gutter = 30 }
-  local ncol, nrow = #fig.columns, 0
-  for _, column in ipairs(fig.columns) do nrow = max(nrow, #column) end
+  local ncol = #fig.columns
   l.x0, l.x1 = x_range(fig)
   l.cell = (width - 2 * l.margin - (ncol - 1) * l.gutter) / ncol
   local head_lines
   head_lines, l.top = head(fig, l.margin, width)
-  l.row_height = l.panel_height + 2 * FONT + 30
-  local height = l.top + nrow * l.row_height + 2
+  -- each panel's height (its own, or panel_height) and below it its tick labels and gap
+  l.below = 2 * FONT + 30
+  local tallest = 0
+  for _, column in ipairs(fig.columns) do
+    local h = 0
+    for _, p in ipairs(column) do h = h + (p.height or l.panel_height) + l.below end
+    tallest = max(tallest, h)
+  end
+  local height = l.top + tallest + 2
   local x_ticks, _, x_decimals = scale.ticks(l.x0, l.x1, max(2, floor(l.cell / 70)))
   l.x_ticks, l.x_decimals = x_ticks, x_decimals
+  l.x_offset = x_offset(l.x0, l.x1, x_ticks[1])
   local defs, body = { "<defs>" }, {}
   local panels, series = columns(fig, defs, body, l)
   local out = {

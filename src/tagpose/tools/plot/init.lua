@@ -55,6 +55,9 @@ M.MARKERS = { false, "circle", "square", "triangle", "diamond", "cross" }
 -- figure's resolution: memory stays bounded and no outlier is dropped.
 M.MAX_POINTS = 1024
 
+--- The height of the confidence's strip (px), under the position's panels.
+M.STRIP_HEIGHT = 56
+
 --- Most series a `recorder` keeps (one per source and track); the points of further series are
 -- counted in its `skipped`, not drawn (a log whose every row carries a new tag id must not fill
 -- memory with series).
@@ -155,12 +158,20 @@ end
 -- id). The quaternion of each series is kept continuous: a pose whose quaternion points away
 -- from the series' previous one (`q · q_prev < 0`) is drawn as `-q`, the same rotation (the
 -- poses themselves keep `w >= 0`).
+--
+-- What the pose log has is drawn: a pose's `covariance` (6×6, position then rotation vector,
+-- camera frame, as `tagpose.solve` gives it) as a band of ±2 standard deviations around each
+-- value (the rotation's deviations, taken as independent, carried to the quaternion's
+-- components or to roll, pitch and yaw through their derivatives), and its `confidence` (or
+-- the one given to `add`) in a strip under the position's panels.
 -- @tparam[opt] table options `rotation` (`"quaternion"`, default, or `"rpy"`), `max_points`
---   (default `MAX_POINTS`)
+--   (default `MAX_POINTS`), `x` (the horizontal axis: `"frame"`, default, or `"time"`, in
+--   seconds)
 -- @treturn table the recorder: `source(label[, dash])` → a source index; `add(source, tag,
---   slot, frame, pose)` (a `nil` pose is a gap: a failed row); `dropped` counts the points
---   that came out of frame order once a series was bucketed, `skipped` those of series past
---   `MAX_SERIES` (neither is drawn)
+--   slot, frame, pose[, confidence[, time]])` (a `nil` pose is a gap: a failed row; `time`
+--   is the point's place on a time axis, where the lines still break at gaps in the frames);
+--   `dropped` counts the points that came out of order once a series was bucketed,
+--   `skipped` those of series past `MAX_SERIES` (neither is drawn)
 function M.recorder(options)
   options = options or {}
   local rotation = options.rotation or "quaternion"
@@ -168,7 +179,11 @@ function M.recorder(options)
     raise(1, "recorder", "options.rotation: 'quaternion' or 'rpy' expected, got "
       .. args.describe(rotation))
   end
-  return recorder_model.new(rotation, options.max_points or M.MAX_POINTS, M)
+  local x = options.x or "frame"
+  if x ~= "frame" and x ~= "time" then
+    raise(1, "recorder", "options.x: 'frame' or 'time' expected, got " .. args.describe(x))
+  end
+  return recorder_model.new(rotation, options.max_points or M.MAX_POINTS, M, x)
 end
 
 -- check the options of draw or poses (fname), argument n; a misuse is blamed on the caller of
@@ -191,8 +206,10 @@ local function check_title(fname, n, options)
   end
 end
 
---- The SVG figure of what a `recorder` holds: position and rotation over frames, one line per
--- source and track of a tag.
+--- The SVG figure of what a `recorder` holds: position and rotation over frames (or time),
+-- one line per source and track of a tag, with the ±2σ band of each line whose poses have a
+-- covariance, and the confidence in a strip (`STRIP_HEIGHT`) under the position's panels
+-- when a pose has one.
 -- Tracks are told apart by colour (ten, `COLOURS`), then by marker (`MARKERS`: the 11th to
 -- 20th track carry circles, and so on), sources by dash (`DASHES`: the first solid). The
 -- legend shows what is drawn: the tracks that have a finite point, and the sources (when

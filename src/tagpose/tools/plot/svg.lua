@@ -4,7 +4,8 @@
 -- A panel is drawn into its area, a record
 --
 --     { id =, left =, top =, width =, height =,  -- the plot area, px
---       x0 =, x1 =, x_ticks =, x_decimals =,     -- the shared horizontal axis
+--       x0 =, x1 =, x_ticks =, x_decimals =,     -- the shared horizontal axis, its labels
+--       x_offset =,                              -- counted from x_offset (0: none)
 --       bottom = boolean }                       -- the lowest panel of its column
 -- @module tagpose.tools.plot.svg
 
@@ -114,30 +115,32 @@ function M.legend(entries, left, top, width)
 end
 
 -- the contiguous runs of a series to draw: {{i1, i2, ...}, ...}, broken where a value is not
--- finite, where x goes back or jumps by more than 1.5 of its smallest step, and where y jumps
--- by more than `wrap`
-local function runs(xs, ys, wrap)
+-- finite (y, or `also` where given), where x goes back, where x (or `gs`, the frames of a
+-- series drawn over time, where given) jumps by more than 1.5 of its smallest step, and where
+-- y jumps by more than `wrap`
+local function runs(xs, ys, wrap, gs, also)
+  gs = gs or xs
   local step = huge
   local prev = nil
-  for i = 1, #xs do
-    local x = xs[i]
+  for i = 1, #gs do
+    local x = gs[i]
     if is_finite(x) then
       if prev and x > prev and x - prev < step then step = x - prev end
       prev = x
     end
   end
   local gap = step < huge and 1.5 * step or huge
-  local out, run, px, py = {}, nil, nil, nil
+  local out, run, px, pg, py = {}, nil, nil, nil, nil
   for i = 1, #xs do
-    local x, y = xs[i], ys[i]
-    if is_finite(x) and is_finite(y) then
-      if run and (x - px > gap or x < px or (wrap and abs(y - py) > wrap)) then run = nil end
+    local x, y, g = xs[i], ys[i], gs[i]
+    if is_finite(x) and is_finite(y) and (not also or is_finite(also[i])) then
+      if run and (g - pg > gap or x < px or (wrap and abs(y - py) > wrap)) then run = nil end
       if not run then
         run = {}
         out[#out + 1] = run
       end
       run[#run + 1] = i
-      px, py = x, y
+      px, pg, py = x, g, y
     else
       run = nil
     end
@@ -147,6 +150,44 @@ end
 
 local function sx(a, v) return a.left + (v - a.x0) / (a.x1 - a.x0) * a.width end
 local function sy(a, v) return a.top + a.height - (v - a.y0) / (a.y1 - a.y0) * a.height end
+
+-- a series' band (±2σ), under its line: a polygon a run (from the high ends forward, back
+-- along the low ends), a run of one point a vertical line; a band wider than the series'
+-- `wrap` (an angle's band across ±180°, where it would fill the panel) is left out
+local function band(out, a, s)
+  local b = s.band
+  local colour = escape(s.colour or "#333333")
+  local lo = b.lo
+  if s.wrap then
+    lo = {}
+    for i = 1, #b.x do
+      lo[i] = b.hi[i] - b.lo[i] <= s.wrap and b.lo[i] or 0 / 0
+    end
+  end
+  out[#out + 1] = ('<g class="band" data-tag="%s" data-source="%s" fill="%s" stroke="none"'
+    .. ' fill-opacity="0.18">'):format(escape(s.tag or ""), escape(s.source or s.label or ""),
+    colour)
+  for _, run in ipairs(runs(b.x, lo, s.wrap, b.gap_x, b.hi)) do
+    if #run == 1 then
+      local i = run[1]
+      local x = coord(sx(a, b.x[i]))
+      out[#out + 1] = ('<line x1="%s" y1="%s" x2="%s" y2="%s" stroke="%s" stroke-width="3"'
+        .. ' stroke-opacity="0.3"/>'):format(x, coord(sy(a, b.hi[i])), x, coord(sy(a, b.lo[i])),
+        colour)
+    else
+      local pts = {}
+      for _, i in ipairs(run) do
+        pts[#pts + 1] = coord(sx(a, b.x[i])) .. "," .. coord(sy(a, b.hi[i]))
+      end
+      for k = #run, 1, -1 do
+        local i = run[k]
+        pts[#pts + 1] = coord(sx(a, b.x[i])) .. "," .. coord(sy(a, b.lo[i]))
+      end
+      out[#out + 1] = '<polygon points="' .. concat(pts, " ") .. '"/>'
+    end
+  end
+  out[#out + 1] = "</g>"
+end
 
 -- the grid lines and the ticks of both axes
 local function grid(out, a, y_ticks)
@@ -177,15 +218,17 @@ local function tick_labels(out, a, p, y_ticks, y_decimals)
     out[#out + 1] = ('<text class="tick-label" x="%s" y="%s" text-anchor="end">%s</text>')
       :format(coord(left - 7), coord(sy(a, v) + 0.35 * FONT), label(v, y_decimals))
   end
+  local offset = a.x_offset or 0
   for _, v in ipairs(a.x_ticks) do
     out[#out + 1] = ('<text class="tick-label" x="%s" y="%s" text-anchor="middle">%s</text>')
-      :format(coord(sx(a, v)), coord(top + height + 6 + FONT), label(v, a.x_decimals))
+      :format(coord(sx(a, v)), coord(top + height + 6 + FONT), label(v - offset, a.x_decimals))
   end
   out[#out + 1] = "</g>"
   if a.bottom then
+    local name = p.x_label or "frame"
+    if offset ~= 0 then name = name .. " from " .. label(offset, 0) end
     out[#out + 1] = ('<text class="axis-label" x="%s" y="%s" text-anchor="middle">%s</text>')
-      :format(coord(left + width / 2), coord(top + height + 12 + 2 * FONT),
-        escape(p.x_label or "frame"))
+      :format(coord(left + width / 2), coord(top + height + 12 + 2 * FONT), escape(name))
   end
 end
 
@@ -197,7 +240,7 @@ local function series(out, a, s)
     .. ' stroke-width="%s"%s>'):format(escape(s.tag or ""), escape(s.source or s.label or ""),
     colour, s.width or 1.5, dash)
   local marks = {}
-  for _, run in ipairs(runs(s.x, s.y, s.wrap)) do
+  for _, run in ipairs(runs(s.x, s.y, s.wrap, s.gap_x)) do
     if #run == 1 then
       local i = run[1]
       if s.marker then
@@ -266,6 +309,9 @@ function M.panel(out, p, a)
   end
   -- the series, clipped to the plot area
   out[#out + 1] = ('<g clip-path="url(#clip-%s)">'):format(escape(a.id))
+  for _, s in ipairs(p.series) do
+    if s.band then band(out, a, s) end
+  end
   for _, s in ipairs(p.series) do series(out, a, s) end
   out[#out + 1] = "</g>"
   out[#out + 1] = ('<rect class="frame" x="%s" y="%s" width="%s" height="%s" fill="none"'

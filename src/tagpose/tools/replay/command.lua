@@ -66,7 +66,8 @@ M.SPEC = {
       .. " row per readable input row (\"-\": standard output; the summary then goes to"
       .. " standard error)" },
     { name = "--svg", kind = "string", meta = "PLOT.svg", help = "draw x, y, z and the"
-      .. " rotation over frames, one line per track" },
+      .. " rotation over frames (over time with a time column), one line per track, with"
+      .. " each pose's ±2 sigma band and its confidence" },
     { name = "--rpy", kind = "flag", help = "draw roll, pitch and yaw in degrees instead of the"
       .. " quaternion" },
     { name = "--unit", kind = "string", meta = "NAME", default_text = "the tag size's unit",

@@ -6,13 +6,17 @@
 -- dashed line of `tag 0 #2` is the one that belongs with `tag 0 #2` (the tracks are the
 -- tracker's: the plot has one association). A row matched with no solved row takes the line
 -- of a row of its frame and tag left over (a row that failed), else the line its tag last
--- had in this log, else the first.
+-- had in this log, else the first. On a figure over time, a row is drawn at its frame's time
+-- in the corner log, a frame the corner log does not have at the time interpolated between
+-- the two frames around it (from the last two at the end; before the first, at the frame
+-- rate).
 -- @module tagpose.tools.replay.compare
 
 local log = require("tagpose.tools.log")
 local stats = require("tagpose.tools.replay.stats")
 local command = require("tagpose.tools.replay.command")
 local frames = require("tagpose.tools.replay.frames")
+local nearest = require("tagpose.tools.replay.nearest")
 
 local sqrt, asin, deg, min, huge = math.sqrt, math.asin, math.deg, math.min, math.huge
 local add, note = stats.add, stats.note
@@ -37,31 +41,28 @@ local function rotation_difference(a, b)
   return deg(4 * asin(min(1, chord / 2)))
 end
 
-local function distance(p, q)
-  local dx, dy, dz = p.x - q.x, p.y - q.y, p.z - q.z
-  return sqrt(dx * dx + dy * dy + dz * dz)
-end
-
 local Compare = {}
 Compare.__index = Compare
 
 --- Open a pose log to compare with.
 -- @tparam string path
 -- @tparam[opt] table recorder the figure's `plot.recorder`, to draw the log on
+-- @tparam[opt=30] number fps the frame rate, for the time of a row before the corner log's
+--   first frame on a figure over time
 -- @treturn table the log: `path`, `matched` (rows matched), `dt` and `dr` (histograms of the
 --   position and rotation differences), `apart` (rows matched whose rotations are more than
 --   `APART` degrees apart: against a truth file, the wrong rows), `problems` (a tally of its
 --   malformed rows),
---   `out_of_order`, `first_out_of_order`; `match(frame, solved[, group])`, `finish()`
+--   `out_of_order`, `first_out_of_order`; `match(frame, solved[, group[, time]])`, `finish()`
 -- @return nil, string when it cannot be read
-function M.open(path, recorder)
+function M.open(path, recorder, fps)
   local reader, err = log.pose_reader(path)
   if not reader then return nil, err:find(path, 1, true) and err or path .. ": " .. err end
   local label = command.basename(path):gsub("%.csv$", "")
   local self = setmetatable({ path = path, reader = reader, source = recorder and
     recorder:source(label), recorder = recorder, last_slot = {}, slotted = 0,
     problems = stats.tally(), dt = stats.histogram(), dr = stats.histogram(), matched = 0,
-    apart = 0,
+    apart = 0, fps = fps or 30, times = {},
     frame = nil, rows = {}, last = nil, out_of_order = 0, first_out_of_order = nil,
     lookahead = nil, done = false }, Compare)
   return self
@@ -99,7 +100,18 @@ function Compare:draw(e, slot)
     end
     last[e.tag] = slot
   end
-  self.recorder:add(self.source, e.tag, slot or last[e.tag] or 1, e.frame, e.pose)
+  self.recorder:add(self.source, e.tag, slot or last[e.tag] or 1, e.frame, e.pose, nil,
+    self:time_of(e.frame))
+end
+
+-- the time of a frame: the corner log's, else interpolated between the last two frames it
+-- gave (before its first, at the frame rate); nil before any
+function Compare:time_of(frame)
+  local t = self.times
+  if not t.f1 then return nil end
+  if frame == t.f1 then return t.t1 end
+  if t.f0 then return t.t0 + (frame - t.f0) * (t.t1 - t.t0) / (t.f1 - t.f0) end
+  return t.t1 + (frame - t.f1) / self.fps
 end
 
 -- consume the rows before `frame`, drawing them
@@ -143,7 +155,7 @@ function Compare:draw_frame(rows, group, taken)
   local left = {}
   for _, row in ipairs(group) do
     if not taken[row] then
-      local list = left[row.tag] or {}
+      local list = left[row.tag] or { next = 1 }
       left[row.tag] = list
       list[#list + 1] = row
     end
@@ -152,8 +164,8 @@ function Compare:draw_frame(rows, group, taken)
     local slot = e.partner and e.partner.slot
     if not slot and not e.drawn then
       local list = left[e.tag]
-      local row = list and table.remove(list, 1)
-      slot = row and row.slot
+      local row = list and list[list.next]
+      if row then list.next, slot = list.next + 1, row.slot end
     end
     self:draw(e, slot)
   end
@@ -165,37 +177,40 @@ end
 -- @tparam {table,...} solved
 -- @tparam[opt] {table,...} group every row of the frame (solved or not), for the lines of the
 --   rows matched with none
-function Compare:match(frame, solved, group)
+-- @tparam[opt] number time the frame's time (s), for a figure over time
+function Compare:match(frame, solved, group, time)
+  local t = self.times
+  if time ~= nil and frame ~= t.f1 then
+    t.f0, t.t0, t.f1, t.t1 = t.f1, t.t1, frame, time
+  end
   local rows = self:take(frame)
   if #rows == 0 then return end
-  local by_tag = {}
-  for i, e in ipairs(rows) do
-    if e.pose and not e.used then
-      local list = by_tag[e.tag] or {}
-      by_tag[e.tag] = list
-      list[#list + 1] = i
-    end
-  end
-  local pairs_ = {}
+  -- per tag: the solved rows and this log's rows not yet matched, each in its order
+  local by_tag, tags = {}, {}
   for k, s in ipairs(solved) do
-    for _, i in ipairs(by_tag[s.tag] or {}) do
-      pairs_[#pairs_ + 1] = { d = distance(s.pose.position, rows[i].pose.position), k = k, i = i }
+    local set = by_tag[s.tag]
+    if not set then
+      set = { ks = {}, a = {}, is = {}, b = {} }
+      by_tag[s.tag], tags[#tags + 1] = set, s.tag
+    end
+    set.ks[#set.ks + 1], set.a[#set.a + 1] = k, s.pose.position
+  end
+  for i, e in ipairs(rows) do
+    local set = by_tag[e.tag]
+    if set and e.pose and not e.used then
+      set.is[#set.is + 1], set.b[#set.b + 1] = i, e.pose.position
     end
   end
-  table.sort(pairs_, function(a, b)
-    if a.d ~= b.d then return a.d < b.d end
-    if a.k ~= b.k then return a.k < b.k end
-    return a.i < b.i
-  end)
-  local used, taken = {}, {}
-  for _, p in ipairs(pairs_) do
-    local k, i = p.k, p.i
-    if not used[k] and not rows[i].used then
-      used[k], rows[i].used = true, true
-      rows[i].partner, taken[solved[k]] = solved[k], true
+  local taken = {}
+  for _, tag in ipairs(tags) do
+    local set = by_tag[tag]
+    local ka, kb, ds = nearest.match(set.a, set.b)
+    for p = 1, #ka do
+      local s, e = solved[set.ks[ka[p]]], rows[set.is[kb[p]]]
+      e.used, e.partner, taken[s] = true, s, true
       self.matched = self.matched + 1
-      add(self.dt, p.d)
-      local dr = rotation_difference(solved[k].pose.quaternion, rows[i].pose.quaternion)
+      add(self.dt, ds[p])
+      local dr = rotation_difference(s.pose.quaternion, e.pose.quaternion)
       add(self.dr, dr)
       if dr > M.APART then self.apart = self.apart + 1 end
     end

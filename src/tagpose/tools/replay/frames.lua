@@ -227,7 +227,7 @@ local function record_rows(run, group, time)
     if not run.last_frame or row.frame > run.last_frame then run.last_frame = row.frame end
     if recorder then
       row.slot = row.track and slots_model.slot(run.slots, row.tag, row.track, time) or 1
-      recorder:add(run.main_source, row.tag, row.slot, row.frame, pose)
+      recorder:add(run.main_source, row.tag, row.slot, row.frame, pose, row.confidence, time)
     end
   end
   return solved_rows
@@ -251,7 +251,7 @@ function M.process(run, group)
   local time = clock_model.time_of(run.clock, group)
   solve_group(run, group, time)
   local solved_rows = record_rows(run, group, time)
-  for _, c in ipairs(run.compares) do c:match(frame, solved_rows, group) end
+  for _, c in ipairs(run.compares) do c:match(frame, solved_rows, group, time) end
 end
 
 --- Read a corner log to its end a frame at a time (at most `MAX_GROUP` rows together): each

@@ -38,7 +38,8 @@
 --              fields. "-" writes it to standard output (the summary then goes to standard
 --              error)
 -- --svg        draw x, y, z and the quaternion (or with --rpy roll, pitch, yaw in degrees) over
---              frames, one line per track; every --compare log is drawn dashed over it
+--              frames (over time with a time column), one line per track, with each pose's
+--              ±2σ band and its confidence; every --compare log is drawn dashed over it
 -- --compare    other pose logs (or truth files frame,tag,x,y,z,qw,qx,qy,qz) to draw and to
 --              measure against, matched by frame and tag; several may follow one --compare
 --
@@ -167,12 +168,13 @@ end
 local function open_inputs(opt, out, log_file)
   local reader = open_log(opt, log_file)
   if opt.svg then
-    out.recorder = plot.recorder({ rotation = opt.rpy and "rpy" or "quaternion" })
+    out.recorder = plot.recorder({ rotation = opt.rpy and "rpy" or "quaternion",
+      x = reader.has_time and "time" or "frame" })
     out.main_source = out.recorder:source("tagpose " .. (opt.method or "refined")
       .. (opt.smooth and " smoothed" or opt.track and " tracked" or ""))
   end
   for _, path in ipairs(opt.compare) do
-    local c, cerr = compare.open(path, out.recorder)
+    local c, cerr = compare.open(path, out.recorder, opt.fps)
     if not c then fail(cerr) end
     out.compares[#out.compares + 1] = c
   end

@@ -14,7 +14,7 @@
 -- row-major tag → body rotation, `(x, y, z)` the tag's centre in the body, and `points` its
 -- corners c1..c4 (detection order: `(-h, +h)`, `(+h, +h)`, `(+h, -h)`, `(-h, -h)` in the tag
 -- frame, `h` half the side) in the body frame, flat `{x1, y1, z1, ..., z4}`.
--- @module tagpose.layout.model
+-- @module tagpose.rigid.model
 
 local compat = require("tagpose.core.compat")
 local args = require("tagpose.core.args")

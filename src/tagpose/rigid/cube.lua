@@ -1,5 +1,5 @@
---- The cube: its 24 rotations, the names of its faces, and the choice of one frame among its
--- symmetric equivalents.
+--- The cube: its 24 rotations, the names of its faces, the choice of one frame among its
+-- symmetric equivalents, and the layout of the standard cube.
 --
 -- A block frame has its origin at the cube's centre and its axes along the face normals.
 -- Rotations are flat, row-major 3×3 arrays (see `tagpose.rotation`). The cube's rotation group
@@ -9,15 +9,23 @@
 -- A face is named by its outward normal: `"+x"`, `"-x"`, `"+y"`, `"-y"`, `"+z"`, `"-z"`. A tag
 -- lies on a face with its z axis into the block, so a tag whose frame in the block frame is
 -- `G` sits on the face with outward normal `-G·e_z` (`face_of`). Where the tags sit on the
--- faces is a layout's business: `tagpose.layout.cube` places the standard cube's tags, and a
--- block is any layout of tags on a cube (`tagpose.block.body`).
--- @module tagpose.layout.cube
+-- faces is a layout's business: `layout` places the standard cube's tags (the public
+-- `tagpose.layout.cube`), and a block is any layout of tags on a cube (`tagpose.block.body`).
+-- @module tagpose.rigid.cube
 
 local rotation = require("tagpose.core.rotation")
+local args = require("tagpose.core.args")
+local model = require("tagpose.rigid.model")
 
 local abs, min = math.abs, math.min
+local is_positive, describe, size_of = args.is_positive, args.describe, args.size_of
 
 local M = {}
+
+-- Raise a misuse at the caller of `layout`.
+local function raise(n, fname, message)
+  args.raise(n, fname, message, 3)
+end
 
 -- The column permutations p (row i has its entry in column p[i]) and their parities; a rotation
 -- of the cube is a permutation with signs on its rows whose product is the parity.
@@ -220,6 +228,57 @@ function M.canonical(r, ux, uy, uz, ax, ay, az, out)
   out[2], out[5], out[8] = zy * xz - zz * xy, zz * xx - zx * xz, zx * xy - zy * xx
   out[3], out[6], out[9] = zx, zy, zz
   return out
+end
+
+-- The tag frame on each face of the standard cube, `[tag_x tag_y tag_z]` (columns) in the
+-- block frame, flat row-major: tag z into the block; on the side faces tag y = -z (the tag
+-- upright on an upright block), tag x = tag y × tag z; on the top tag x = +x, tag y = -y; on
+-- the bottom tag x = +x, tag y = +y. The one place where tagpose puts tags on a cube's faces.
+local FACE_FRAMES = {
+  ["+x"] = { 0, 0, -1, 1, 0, 0, 0, -1, 0 },
+  ["-x"] = { 0, 0, 1, -1, 0, 0, 0, -1, 0 },
+  ["+y"] = { -1, 0, 0, 0, 0, -1, 0, -1, 0 },
+  ["-y"] = { 1, 0, 0, 0, 0, 1, 0, -1, 0 },
+  ["+z"] = { 1, 0, 0, 0, -1, 0, 0, 0, -1 },
+  ["-z"] = { 1, 0, 0, 0, 1, 0, 0, 0, 1 },
+}
+
+-- the default faces: ids 0 to 5 on +x, -x, +y, -y, +z, -z
+local DEFAULT_FACES = { [0] = "+x", "-x", "+y", "-y", "+z", "-z" }
+
+--- The layout of the standard cube: a centred tag on each face named (`tagpose.layout.cube`,
+-- documented there), raising `bad argument #n to 'cube'` at its caller.
+-- @tparam number|table tag_size side of the tags' black squares; or the sides by tag id
+-- @tparam number block_size side of the cube
+-- @tparam[opt] table faces tag id → face name or nested 3×3 rotation of the cube
+-- @treturn table layout `{tags = {[id] = {size =, position =, quaternion =}}}`
+function M.layout(tag_size, block_size, faces)
+  local problem = args.check_sizes(tag_size, "tag_size")
+  if problem then raise(1, "cube", problem) end
+  for _, size in pairs(type(tag_size) == "table" and tag_size or { tag_size }) do
+    if not (is_positive(block_size) and block_size > size) then
+      raise(2, "cube", "number above tag_size expected for block_size, got "
+        .. describe(block_size))
+    end
+  end
+  faces = faces or DEFAULT_FACES
+  if type(faces) ~= "table" then raise(3, "cube", "table expected, got " .. type(faces)) end
+  local tags, half = {}, 0.5 * block_size
+  for id, face in pairs(faces) do
+    local k = type(face) ~= "string" and M.of_nested(face)
+    local r = FACE_FRAMES[face] or M.ROTATIONS[k]
+    if not (model.is_id(id) and r) then
+      raise(3, "cube", "faces[" .. tostring(id) .. "]: face '+x', '-x', '+y', '-y', '+z' or "
+        .. "'-z', or a 3x3 rotation of the cube, expected")
+    end
+    local size = size_of(tag_size, id)
+    if size == nil then
+      raise(1, "cube", "tag_size has no size for tag id " .. tostring(id) .. " and no default")
+    end
+    -- the face's outward normal: -R_f·e_z
+    tags[id] = model.entry(r, 0 - half * r[3], 0 - half * r[6], 0 - half * r[9], size)
+  end
+  return { tags = tags }
 end
 
 return M

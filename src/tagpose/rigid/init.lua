@@ -19,7 +19,7 @@
 -- Rotations are flat, row-major 3×3 (body → camera); body points are flat
 -- `{x1, y1, z1, x2, ...}` in the body frame; pixels are flat `{u1, v1, u2, v2, ...}`; the
 -- camera is packed (`tagpose.core.lsq.pack`); the kernels are `tagpose.core.lsq`'s.
--- @module tagpose.layout.rigid
+-- @module tagpose.rigid
 
 local lsq = require("tagpose.core.lsq")
 

@@ -1,7 +1,8 @@
 --- The public result of a solve: the pose table a caller gets, and what it costs.
 --
 -- A solve returns a pose table (`position`, `rotation`, `quaternion`, `error`, `iterations`,
--- `refine_iterations`) built from the pipeline's candidates (`tagpose.core.pipeline`). What a
+-- `refine_iterations`) built from the pipeline's candidates (`tagpose.core.pipeline`) at the
+-- end of the solve (`tagpose.result.finish`, the one caller of `new`). What a
 -- robot often does not read is made only when it is first read, by the pose's metatable:
 --
 -- * `alternative`, the other minimum's pose table (nil where there is one minimum);
@@ -21,7 +22,7 @@
 -- uncertainty of a pose that was never solved. With `options.into` the tables, the metatable
 -- and the alternative and covariance tables made before are reused: a caller who passes the
 -- same table every frame allocates nothing.
--- @module tagpose.core.result
+-- @module tagpose.result.pose
 
 local rotation = require("tagpose.core.rotation")
 
@@ -271,27 +272,28 @@ end
 
 --- The result of a solve from its candidates: the pose `a`, the other minimum `b` (or nil),
 -- with the fields above made on read.
+-- @tparam table ctx the solve's context (`tagpose.result.context`): its `camera` (kept for the
+--   fields made on read), `half` (half the tag side), `time` (false: none), `into` (false: a
+--   new table), `seed` and `work` (solveQuad's iterations, and for the refined method the
+--   linearisations spent on a)
 -- @tparam table a the pose's candidate (`r`, `tx`, `ty`, `tz`, `qw`, `qx`, `qy`, `qz`, `sse`,
 --   `normal`: H in its first 21 numbers)
 -- @tparam number ea its RMS reprojection error (px)
--- @tparam ?table b the other minimum's candidate, or nil
+-- @tparam ?table b the other minimum's candidate (its `linearisations` spent on it), or nil
 -- @tparam ?number eb its error
--- @tparam int iterations solveQuad's iterations
--- @tparam ?int la the linearisations spent on a (nil for the report's method)
--- @tparam ?int lb those spent on b
--- @tparam table camera the camera (kept for the fields made on read)
--- @tparam number half half the tag side
 -- @tparam ?number sigma2 σ² (px²), or nil: the default pooled with a's residuals
 -- @tparam number side the tag's side in pixels
--- @tparam ?number time the frame's time (s)
--- @tparam ?table into a pose table to fill
 -- @treturn table the pose
-function M.new(a, ea, b, eb, iterations, la, lb, camera, half, sigma2, side, time, into)
-  local result = pose_table(a, ea, iterations, la, into)
+function M.new(ctx, a, ea, b, eb, sigma2, side)
+  local w, camera, half, time, into = ctx.work, ctx.camera, ctx.half, ctx.time, ctx.into
+  local lb = b and b.linearisations
+  local result = pose_table(a, ea, w.iterations, not ctx.seed and w.linearisations or nil,
+    into or nil)
   local count = b and 2 or 1
   b = b or a
-  local na, nb, r, sum = a.normal, b.normal, b.r, checksum(result)
-  local mt = getmetatable(result)
+  -- (the checksum of the pose table, from the numbers it was just filled with)
+  local na, nb, r, sum = a.normal, b.normal, b.r, a.tx + a.ty + a.tz + a.qw + a.qx + a.qy + a.qz
+  local mt = into and getmetatable(result) -- (a new table has none)
   if not (mt and mt.__index == made_on_read) then
     -- (one constructor: the array part is allocated once, at its size)
     setmetatable(result, { camera, half, sigma2 or false, side, time or false, result, sum,
