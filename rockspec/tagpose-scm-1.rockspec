@@ -109,6 +109,7 @@ build = {
     ["tagpose.uncertainty.matrix"] = "src/tagpose/uncertainty/matrix.lua",
     ["tagpose.uncertainty.model"] = "src/tagpose/uncertainty/model.lua",
     ["tagpose.uncertainty.read"] = "src/tagpose/uncertainty/read.lua",
+    ["tagpose.uncertainty.read_jit"] = "src/tagpose/uncertainty/read_jit.lua",
   },
 }
 test = {

@@ -24,7 +24,6 @@
 -- same table every frame allocates nothing.
 -- @module tagpose.result.pose
 
-local compat = require("tagpose.core.compat")
 local rotation = require("tagpose.core.rotation")
 
 local to_nested = rotation.to_nested
@@ -40,38 +39,43 @@ local SSE_A, SSE_B = 50, 51
 local R_B, T_B, Q_B = 51, 60, 63 -- the other candidate: r 52..60, t 61..63, q 64..67
 local ERR_B, LIN_B = 68, 69
 local READ = 70
-local X_ALT, X_ANALYSED, X_K_A, X_K_B, X_CHORD = 1, 2, 3, 4, 4 -- chord: 5..10
+local X_ALT, X_ANALYSED = 1, 2
 local X_COV_A, X_COV_B, X_TRACK = 11, 12, 13 -- the tables made before, to fill again
-local X_KAPPA = 14 -- the covariance's factor for an estimated σ (`tagpose.uncertainty.noise`)
--- (slots 15..35: the factors of the pose's H, kept by `tagpose.uncertainty.read`)
+-- (the other slots are `tagpose.uncertainty.read`'s, which makes the confidence and covariance
+-- straight from this metatable's numbers: the chord factors at 3 and 4, the chord at 5..10,
+-- the covariance's factor κ for an estimated σ at 14, the factors of the pose's H at 15..35,
+-- σ² at 36)
 
--- On PUC Lua the confidence and covariance are made by `tagpose.uncertainty.read`, in passes
--- of locals over this metatable's numbers; on LuaJIT, whose traces do not take a function
--- with that many live locals, by `tagpose.uncertainty` from candidate records.
-local IN_LOCALS = not compat.jit
+-- A result's analysis is kept in a record of its own when it has one (an alternative or a track
+-- was read, or the result is an `options.into` table solved again: its covariance tables are
+-- filled again), else in `shared`, which holds the analysis of one result, `cached`'s, at a time:
+-- the common read of a fresh solve's confidence and covariance allocates nothing but the
+-- covariance. A result whose analysis `shared` no longer holds is analysed again, into it. The
+-- numbers are the same whichever record holds them and however often they are made: the
+-- analysis reads only the metatable's numbers, and writes none of them.
+local function record()
+  return { false, false, 0, 0, 0, 0, 0, 0, 0, 0, false, false, false, 1, 0, 0, 0, 0, 0, 0, 0, 0,
+    0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0 }
+end
+local shared = record()
+-- cached[1]: the metatable whose analysis `shared` holds, or false (`new` clears it, reusing it).
+-- (In a table: an upvalue set to each new result would have the collector mark every one of them,
+-- and what they hold, while it marks.)
+local cached = { false }
 
--- The record of what was made on read (made at the first read; one table, at its size).
+-- The record of what was made on read, of its own (made at the first need; one table, at its
+-- size).
 local function made(mt)
   local x = mt[READ]
   if not x then
-    if IN_LOCALS then
-      x = { false, false, 0, 0, 0, 0, 0, 0, 0, 0, false, false, false, 1, 0, 0, 0, 0, 0, 0, 0,
-        0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0 }
-    else
-      x = { false, false, 0, 0, 0, 0, 0, 0, 0, 0, false, false, false, 1 }
-    end
+    x = record()
     mt[READ] = x
   end
   return x
 end
 
 local lazy = {} -- the modules the fields made on read need, loaded with them
-local cand_a, cand_b -- the records the uncertainty takes, rebuilt from a metatable
-local analysed -- the metatable whose candidates cand_a and cand_b hold now
--- the count of analyses made: each result's analysis is named by its own number (X_ANALYSED),
--- so that the uncertainty reuses its factors for that analysis only, never for another pose's
--- that happens to be in the same scratch records
-local serial = 0
+local cand_a, cand_b -- the records the track takes, rebuilt from a metatable
 
 local CHANGED = "tagpose: a pose was changed in place after its solve: read its alternative, "
   .. "confidence, covariance and track before changing it (or copy it)"
@@ -85,8 +89,7 @@ end
 -- The candidate record of the returned pose (from its table, checked) and of the other (from
 -- the metatable), with their H and residuals.
 local function candidates(mt)
-  if not lazy.uncertainty then
-    lazy.uncertainty = require("tagpose.uncertainty")
+  if not cand_a then
     local pipeline = require("tagpose.core.pipeline")
     cand_a, cand_b = pipeline.candidate(), pipeline.candidate()
   end
@@ -108,74 +111,44 @@ local function candidates(mt)
   for i = 1, 9 do r[i] = mt[R_B + i] end
   b.tx, b.ty, b.tz = mt[T_B + 1], mt[T_B + 2], mt[T_B + 3]
   b.qw, b.qx, b.qy, b.qz = mt[Q_B + 1], mt[Q_B + 2], mt[Q_B + 3], mt[Q_B + 4]
-  analysed = mt
   return a, mt[ERR_B] and b or nil
 end
 
--- The branch analysis of a result, once: σ², the chord factors and the chord into the
--- metatable, both confidences unless a tracker set them.
+-- The branch analysis of a result, once (again only when `shared` was taken by another since):
+-- σ², the chord factors, the chord and the pose's factors into its record, both confidences
+-- unless a tracker set them. Returns the record.
 local function analyse(mt)
-  local x = made(mt)
-  if x[X_ANALYSED] then return x end
-  if IN_LOCALS then
-    local read = lazy.read
-    if not read then
-      read = require("tagpose.uncertainty.read")
-      lazy.read = read
-    end
-    local p = read.analyse(mt, x)
-    serial = serial + 1
-    x[X_ANALYSED] = serial
-    local first = mt[FIRST]
-    if rawget(first, "confidence") == nil then
-      rawset(first, "confidence", p)
-      local alt = x[X_ALT]
-      if alt and mt[ERR_B] then rawset(alt, "confidence", 1 - p) end
-    end
-    return x
+  local x = mt[READ]
+  if x then
+    if x[X_ANALYSED] then return x end
+  elseif cached[1] == mt then
+    return shared
+  else
+    x, cached[1] = shared, false
   end
-  local a, b = candidates(mt)
-  local sigma2, kappa = mt[SIGMA2], 1
-  if not sigma2 then sigma2, kappa = lazy.uncertainty.noise(a.sse) end
-  serial = serial + 1
-  lazy.uncertainty.assess(a, b, sigma2, serial)
-  mt[SIGMA2], x[X_K_A], x[X_K_B], x[X_ANALYSED], x[X_KAPPA] = sigma2, a.k, b and b.k or 0,
-    serial, kappa
-  local d = a.chord
-  for i = 1, 6 do x[X_CHORD + i] = b and d[i] or 0 end
+  local read = lazy.read
+  if not read then
+    read = require("tagpose.uncertainty.read")
+    lazy.read = read
+  end
+  local p = read.analyse(mt, x)
+  x[X_ANALYSED] = true
+  if x == shared then cached[1] = mt end
   local first = mt[FIRST]
   if rawget(first, "confidence") == nil then
-    rawset(first, "confidence", a.confidence)
+    rawset(first, "confidence", p)
     local alt = x[X_ALT]
-    if b and alt then rawset(alt, "confidence", b.confidence) end
+    if alt and mt[ERR_B] then rawset(alt, "confidence", 1 - p) end
   end
   return x
 end
 
--- The covariance of the returned pose, or of its alternative (x analysed: the uncertainty
--- reuses the factors of x's own analysis when nothing was factored since).
+-- The covariance of the returned pose, or of its alternative (x its analysed record), into the
+-- table made before if any.
 local function covariance(mt, x, is_alt)
-  if IN_LOCALS then
-    local slot = is_alt and X_COV_B or X_COV_A
-    local cov = lazy.read.covariance(mt, x, is_alt, x[slot] or nil)
-    x[slot] = cov
-    return cov
-  end
-  if analysed ~= mt then
-    candidates(mt)
-  elseif checksum(mt[FIRST]) ~= mt[CHECK] then
-    -- (checked whatever was read before: as the analysis does, and as PUC Lua's path does)
-    error(CHANGED, 3)
-  end
-  local c, slot, k, sign = cand_a, X_COV_A, x[X_K_A], 1
-  if is_alt then c, slot, k, sign = cand_b, X_COV_B, x[X_K_B], -1 end
-  -- (σ² estimated from the frame: the covariance and its chord term widened by κ, so that its
-  -- 95 % ellipsoid holds 95 %; the confidence took σ² itself)
-  local kappa = x[X_KAPPA]
-  c.k = kappa * k
-  local d = c.chord
-  for i = 1, 6 do d[i] = sign * x[X_CHORD + i] end
-  local cov = lazy.uncertainty.covariance(c, kappa * mt[SIGMA2], x[slot] or nil, x[X_ANALYSED])
+  if x == shared then return lazy.read.covariance(mt, x, is_alt, nil) end
+  local slot = is_alt and X_COV_B or X_COV_A
+  local cov = lazy.read.covariance(mt, x, is_alt, x[slot] or nil)
   x[slot] = cov
   return cov
 end
@@ -237,7 +210,10 @@ local function made_on_read(t, key)
     return alt
   elseif key == "confidence" then
     analyse(mt)
-    return rawget(t, key)
+    -- (not returned as a tail call of rawget: a LuaJIT trace cannot return from a fast
+    -- function's tail call through this metamethod's frame, and the read would be interpreted)
+    local confidence = rawget(t, key)
+    return confidence
   elseif key == "covariance" then
     local cov = covariance(mt, analyse(mt), is_alt)
     rawset(t, "covariance", cov)
@@ -330,12 +306,12 @@ function M.new(ctx, a, ea, b, eb, sigma2, side)
     if count == 1 then result.confidence = 1 end
     return result
   end
-  if analysed == mt then analysed = nil end
-  local x = mt[READ]
-  if x then
-    if x[X_ALT] then spare[result] = x[X_ALT] end
-    x[X_ALT], x[X_ANALYSED] = false, false
-  end
+  -- (an `into` table solved again keeps a record of its own: the tables read before are filled
+  -- again)
+  if cached[1] == mt then cached[1] = false end
+  local x = made(mt)
+  if x[X_ALT] then spare[result] = x[X_ALT] end
+  x[X_ALT], x[X_ANALYSED] = false, false
   mt[CAMERA], mt[HALF], mt[SIGMA2], mt[SIDE], mt[TIME], mt[FIRST], mt[CHECK] =
     camera, half, sigma2 or false, side, time or false, result, sum
   for i = 1, 21 do mt[H_A + i], mt[H_B + i] = na[i], nb[i] end

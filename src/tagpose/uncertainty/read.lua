@@ -3,17 +3,18 @@
 -- `covariance` (and `tagpose.uncertainty.matrix`'s factors, inverse and table), operation for
 -- operation, so the numbers are the same to the bit; only where they are kept differs: in
 -- locals instead of candidate records and scratch arrays, read straight from the result's own
--- arrays. Nothing is shared between two results, so no number depends on what was read before.
--- (On LuaJIT a function with this many live locals does not compile; `tagpose.result.pose`
--- keeps the records' path there.)
+-- arrays. Nothing is kept between two calls, so no number depends on what was read before. (On
+-- LuaJIT, whose traces do not take this many live locals, the two functions are
+-- `tagpose.uncertainty.read_jit`'s.)
 --
 -- It reads the array part of a result's metatable, laid out by `tagpose.result.pose`: half the
 -- tag side at 2, σ² (or false) at 3, the pose table at 6, its checksum at 7, H of each
 -- candidate (21 numbers, `tagpose.core.lsq`'s layout) at 8..28 and 29..49, their residual sums
 -- at 50 and 51, the other candidate's flat rotation at 52..60, its position at 61..63, its
--- quaternion at 64..67 and its error (false: the pose is the only minimum) at 68. It writes
--- the record `x` of what was made on read (the same module's slots): the chord factors at 3
--- and 4, the chord at 5..10, κ at 14 and the factors of the pose's H at 15..35.
+-- quaternion at 64..67 and its error (false: the pose is the only minimum) at 68; it writes none
+-- of them. It writes the record `x` of what was made on read (the same module's slots): the
+-- chord factors at 3 and 4, the chord at 5..10, κ at 14, the factors of the pose's H at 15..35
+-- and σ² at 36.
 -- @module tagpose.uncertainty.read
 
 local compat = require("tagpose.core.compat")
@@ -28,7 +29,7 @@ local M = {}
 
 -- the slots of the metatable and of the record (`tagpose.result.pose`)
 local SIGMA2, FIRST, CHECK, SSE_A, SSE_B, ERR_B = 3, 6, 7, 50, 51, 68
-local X_K_A, X_K_B, X_KAPPA = 3, 4, 14
+local X_K_A, X_K_B, X_KAPPA, X_SIGMA2 = 3, 4, 14, 36
 
 local CHANGED = "tagpose: a pose was changed in place after its solve: read its alternative, "
   .. "confidence, covariance and track before changing it (or copy it)"
@@ -72,8 +73,8 @@ local function factor(a11, a12, a13, a14, a15, a16, a22, n8, n9, n10, n11, a33, 
 end
 
 --- The branch analysis of a result, into its record x (the arithmetic of `assess`, the
--- noise's σ² and κ when none was given): the chord factors, the chord, κ and the pose's
--- factors; σ² into the metatable. The pose is checked against its checksum first.
+-- noise's σ² and κ when none was given): the chord factors, the chord, κ, the pose's factors
+-- and σ². The pose is checked against its checksum first.
 -- @tparam table mt the result's metatable
 -- @tparam table x its record of what was made on read
 -- @treturn number the pose's confidence (1 when it is the only minimum)
@@ -85,7 +86,7 @@ function M.analyse(mt, x)
   if tx + ty + tz + qw + qx + qy + qz ~= mt[CHECK] then error(CHANGED, 4) end
   local sigma2, kappa = mt[SIGMA2], 1
   if not sigma2 then sigma2, kappa = uncertainty.noise(mt[SSE_A]) end
-  mt[SIGMA2], x[X_KAPPA] = sigma2, kappa
+  x[X_SIGMA2], x[X_KAPPA] = sigma2, kappa
   if not mt[ERR_B] then
     x[X_K_A], x[X_K_B] = 0, 0
     x[5], x[6], x[7], x[8], x[9], x[10] = 0, 0, 0, 0, 0, 0
@@ -279,7 +280,7 @@ function M.covariance(mt, x, is_alt, out)
   local t, q = p.position, p.quaternion
   if t.x + t.y + t.z + q.w + q.x + q.y + q.z ~= mt[CHECK] then error(CHANGED, 4) end
   local kappa = x[X_KAPPA]
-  local s = kappa * mt[SIGMA2]
+  local s = kappa * x[X_SIGMA2]
   if is_alt then
     local k = kappa * x[X_K_B]
     local c1, c2, c3, c4, c5, c6 = 0, 0, 0, 0, 0, 0
@@ -307,6 +308,13 @@ function M.covariance(mt, x, is_alt, out)
   return fill(out, s, k, c1, c2, c3, c4, c5, c6, 0, x[15], x[16], x[17], x[18], x[19], x[20],
     x[21], x[22], x[23], x[24], x[25], x[26], x[27], x[28], x[29], x[30], x[31], x[32], x[33],
     x[34], x[35])
+end
+
+-- On LuaJIT, whose traces do not take these passes of locals: the same two functions in the
+-- form they do take (`tagpose.uncertainty.read_jit`).
+if compat.jit then
+  local slots = require("tagpose.uncertainty.read_jit")
+  M.analyse, M.covariance = slots.analyse, slots.covariance
 end
 
 return M
