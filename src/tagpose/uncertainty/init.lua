@@ -79,11 +79,6 @@ local factors_a, factors_b = {}, {} -- the LDLᵀ factors of the two candidates'
 local packed = {} -- a packed H⁻¹
 local product = {} -- a flat rotation
 local both, logdets = {}, {} -- the two candidates' normal equations, and their ln det H
--- the candidates whose factors factors_a and factors_b hold, and the caller's token of the
--- analysis that made them (set by `assess` when it is given one; any other factoring clears it):
--- the factors are reused only for the token they were made for, never for a record that merely
--- is the same table (a caller's scratch records hold one pose after another)
-local factored_a, factored_b, factored_token
 
 -- The tilt of a pose: the component a of the tag's normal n across the line of sight l to its
 -- centre, as sin θ = |a| and a itself, with n·l and |t|.
@@ -151,7 +146,6 @@ function M.analyse(a, b, sigma2)
   -- solve's)
   both[1], both[2] = a.normal, b.normal
   for c = 1, 2 do logdets[c] = factor(both[c], c == 1 and Fa or Fb) end
-  factored_a, factored_b, factored_token = a, b, nil
   local dc = (b.sse - a.sse) / sigma2
   -- Laplace: each basin's mass exp(-χ²/2) (2π)³ det(H/σ²)^(-1/2), σ cancels in the ratio
   local L = 0.5 * dc + 0.5 * (logdets[2] - logdets[1])
@@ -269,7 +263,6 @@ local chord = M.chord
 -- @treturn table the covariance
 -- @treturn number ln det H (pivots below 1e-12 of their diagonal raised to it)
 function M.from_normal(N, sigma2, k, d, out)
-  factored_a, factored_b, factored_token = nil, nil, nil
   local ld = factor(N, factors_a)
   return M.from_factors(factors_a, ld, sigma2, k, d, out)
 end
@@ -296,17 +289,9 @@ end
 -- @tparam table c a candidate record (`normal`; optionally `k` and `chord` from `assess`)
 -- @tparam number sigma2 σ² (px²)
 -- @tparam[opt] table out nested 6×6 to fill (nil: a new one)
--- @param[opt] token the token given to the `assess` whose candidates c is one of: when the last
---   factoring was that call's, its factors are reused (nil: H is factored again)
 -- @treturn table the covariance
 -- @treturn number ln det H
-function M.covariance(c, sigma2, out, token)
-  local reuse = token ~= nil and token == factored_token
-  if reuse and c == factored_a then
-    return M.from_factors(factors_a, logdets[1], sigma2, c.k or 0, c.chord, out)
-  elseif reuse and c == factored_b then
-    return M.from_factors(factors_b, logdets[2], sigma2, c.k or 0, c.chord, out)
-  end
+function M.covariance(c, sigma2, out)
   return M.from_normal(c.normal, sigma2, c.k or 0, c.chord, out)
 end
 
@@ -317,19 +302,14 @@ end
 -- @tparam table a a candidate record
 -- @tparam[opt] table b the other minimum of the planar ambiguity
 -- @tparam number sigma2 σ² (px²)
--- @param[opt] token any value that names this analysis (not nil): `covariance` given the same
---   token reuses its factors while no other factoring came between
 -- @treturn number the untempered log-odds of a's branch over b's (`log_odds`); `math.huge`
 --   without b
-function M.assess(a, b, sigma2, token)
+function M.assess(a, b, sigma2)
   if not b then
-    -- (nothing factored: whatever an earlier call left is not a's)
-    factored_a, factored_b, factored_token = nil, nil, nil
     a.confidence, a.k = 1, 0
     return huge
   end
   local L, ka, kb = analyse(a, b, sigma2)
-  factored_token = token
   local p = M.probability(L)
   a.confidence, b.confidence, a.k, b.k = p, 1 - p, ka, kb
   local d1, d2, d3, d4, d5, d6 = 0, 0, 0, 0, 0, 0
