@@ -18,13 +18,14 @@
 -- drawn outcomes; and over every set, the rows at a confidence of 0.99 or more: how many, how
 -- many of them wrong, and how many the confidence expects wrong. Run from the repository root.
 
-package.path = "./src/?.lua;./src/?/init.lua;" .. package.path
+package.path = "./src/?.lua;./src/?/init.lua;./bench/lib/?.lua;" .. package.path
+local bench = require("confidence")
 local tagpose = require("tagpose")
 local log = require("tagpose.tools.log")
 local rotation = require("tagpose.core.rotation")
 local uncertainty = require("tagpose.uncertainty")
 
-local deg, floor, abs, ceil = math.deg, math.floor, math.abs, math.ceil
+local deg, ceil = math.deg, math.ceil
 
 local function usage(msg)
   io.stderr:write((msg and msg .. "\n" or "") .. "usage: luajit bench/confidence_sets.lua DIR "
@@ -32,52 +33,21 @@ local function usage(msg)
   os.exit(2)
 end
 
-local opt = { dirs = {}, rows = 2000 }
-do
-  local names = { ["--spread-limit"] = "SPREAD_LIMIT", ["--spread"] = "SPREAD",
-    ["--kappa"] = "KAPPA" }
-  local i = 1
-  while i <= #arg do
-    local a = arg[i]
-    if a == "--rows" then
-      i = i + 1
-      opt.rows = tonumber(arg[i] or "") or usage("--rows needs a number")
-    elseif names[a] then
-      i = i + 1
-      uncertainty[names[a]] = tonumber(arg[i] or "") or usage(a .. " needs a number")
-    elseif a:sub(1, 2) == "--" then
-      usage("unknown option " .. a)
-    else
-      opt.dirs[#opt.dirs + 1] = a
-    end
-    i = i + 1
-  end
-  if #opt.dirs == 0 then usage() end
-end
-
-local function exists(path)
-  local f = io.open(path, "r")
-  if f then f:close() end
-  return f ~= nil
-end
-
-local sets = {}
-for _, dir in ipairs(opt.dirs) do
-  dir = dir:gsub("/*$", "")
-  if exists(dir .. "/corners.csv") then
-    sets[#sets + 1] = dir
-  else
-    local p = io.popen('ls -1 "' .. dir .. '"')
-    for name in p:lines() do
-      local d = dir .. "/" .. name
-      if exists(d .. "/truth.csv") and exists(d .. "/camera.lua") and exists(d .. "/corners.csv")
-      then
-        sets[#sets + 1] = d
-      end
-    end
-    p:close()
+local opt = { rows = 2000 }
+local handlers = {
+  ["--rows"] = function(take)
+    opt.rows = tonumber(take() or "") or usage("--rows needs a number")
+  end,
+}
+for a, name in pairs({ ["--spread-limit"] = "SPREAD_LIMIT", ["--spread"] = "SPREAD",
+  ["--kappa"] = "KAPPA" }) do
+  handlers[a] = function(take)
+    uncertainty[name] = tonumber(take() or "") or usage(a .. " needs a number")
   end
 end
+opt.dirs = bench.arguments(arg, handlers, usage)
+if #opt.dirs == 0 then usage() end
+local sets = bench.sets(opt.dirs)
 
 local function sigma_of(dir)
   local f = io.open(dir .. "/meta.json", "r")
@@ -89,23 +59,7 @@ local function sigma_of(dir)
 end
 
 -- ECE (10 equal bins) and wrong@.95 of the confidences c[i0..i1] with outcomes y
-local function score(c, y, i0, i1)
-  local sum, hits = {}, {}
-  for b = 1, 10 do sum[b], hits[b] = 0, 0 end
-  local high, wrong = 0, 0
-  for i = i0, i1 do
-    local b = c[i] >= 1 and 10 or floor(c[i] * 10) + 1
-    sum[b] = sum[b] + c[i]
-    if y[i] then hits[b] = hits[b] + 1 end
-    if c[i] >= 0.95 then
-      high = high + 1
-      if not y[i] then wrong = wrong + 1 end
-    end
-  end
-  local e = 0
-  for b = 1, 10 do e = e + abs(hits[b] - sum[b]) end
-  return e / math.max(i1 - i0 + 1, 1), wrong, high
-end
+local score = bench.calibration
 
 -- Park-Miller (the same outcomes on every VM)
 local state = 20240

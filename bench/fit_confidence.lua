@@ -15,7 +15,8 @@
 -- `tagpose.track`, and the expected calibration error (10 equal bins of confidence) of the
 -- current map and of the fitted one on these rows. Fit on sets the figures are not reported on.
 
-package.path = "./src/?.lua;./src/?/init.lua;" .. package.path
+package.path = "./src/?.lua;./src/?/init.lua;./bench/lib/?.lua;" .. package.path
+local bench = require("confidence")
 local tagpose = require("tagpose")
 local log = require("tagpose.tools.log")
 local rotation = require("tagpose.core.rotation")
@@ -29,60 +30,21 @@ local function usage(msg)
   os.exit(2)
 end
 
-local opt = { dirs = {}, knots = { 0, 6, 11, 14, 40 }, cap = 9 }
-do
-  local i = 1
-  while i <= #arg do
-    local a = arg[i]
-    if a == "--knots" then
-      i = i + 1
-      opt.knots = {}
-      for v in (arg[i] or usage("--knots needs values")):gmatch("[^,]+") do
-        opt.knots[#opt.knots + 1] = tonumber(v) or usage("--knots: numbers expected")
-      end
-    elseif a == "--cap" then
-      i = i + 1
-      opt.cap = tonumber(arg[i] or "") or usage("--cap needs a number")
-    elseif a == "--set" then
-      i = i + 1
-      local name, value = (arg[i] or ""):match("^([%u_%d]+)=([-%d.eE+]+)$")
-      if not name or type(track[name]) ~= "number" then
-        usage("--set NAME=NUMBER (a tagpose.track constant)")
-      end
-      track[name] = tonumber(value)
-    elseif a:sub(1, 2) == "--" then
-      usage("unknown option " .. a)
-    else
-      opt.dirs[#opt.dirs + 1] = a
+local opt = { knots = { 0, 6, 11, 14, 40 }, cap = 9 }
+opt.dirs = bench.arguments(arg, {
+  ["--knots"] = function(take)
+    opt.knots = {}
+    for v in (take() or usage("--knots needs values")):gmatch("[^,]+") do
+      opt.knots[#opt.knots + 1] = tonumber(v) or usage("--knots: numbers expected")
     end
-    i = i + 1
-  end
-  if #opt.dirs == 0 then usage() end
-end
-
-local function exists(path)
-  local f = io.open(path, "r")
-  if f then f:close() end
-  return f ~= nil
-end
-
-local sets = {}
-for _, dir in ipairs(opt.dirs) do
-  dir = dir:gsub("/*$", "")
-  if exists(dir .. "/corners.csv") then
-    sets[#sets + 1] = dir
-  else
-    local p = io.popen('ls -1 "' .. dir .. '"')
-    for name in p:lines() do
-      -- (a set of tag poses has its camera.lua; not a drive log of robot poses)
-      if exists(dir .. "/" .. name .. "/truth.csv") and exists(dir .. "/" .. name .. "/camera.lua")
-      then
-        sets[#sets + 1] = dir .. "/" .. name
-      end
-    end
-    p:close()
-  end
-end
+  end,
+  ["--cap"] = function(take)
+    opt.cap = tonumber(take() or "") or usage("--cap needs a number")
+  end,
+  ["--set"] = bench.set_constant(track, usage),
+}, usage)
+if #opt.dirs == 0 then usage() end
+local sets = bench.sets(opt.dirs)
 table.sort(sets)
 
 -- the posteriors the tracker calibrates, in the order it does (one per tracked detection)

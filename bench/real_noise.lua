@@ -27,7 +27,8 @@
 -- how confident the wrong ones were. `--set NAME=VALUE` sets a `tagpose.track` constant (for
 -- measuring it).
 
-package.path = "./src/?.lua;./src/?/init.lua;./spec/?.lua;" .. package.path
+package.path = "./src/?.lua;./src/?/init.lua;./spec/?.lua;./bench/lib/?.lua;" .. package.path
+local bench = require("confidence")
 local tagpose = require("tagpose")
 local log = require("tagpose.tools.log")
 local rotation = require("tagpose.core.rotation")
@@ -44,44 +45,25 @@ end
 
 local track = require("tagpose.track")
 
-local opt = { sigmas = { 2, 3 }, seeds = 5, from = 1, frame_time = 0.095, dirs = {} }
+local opt = { sigmas = { 2, 3 }, seeds = 5, from = 1, frame_time = 0.095 }
 do
-  local i = 1
-  while i <= #arg do
-    local a = arg[i]
-    if a == "--sigma" then
-      i = i + 1
+  local function number(name, message)
+    return function(take) opt[name] = tonumber(take()) or usage(message) end
+  end
+  opt.dirs = bench.arguments(arg, {
+    ["--sigma"] = function(take)
       opt.sigmas = {}
-      for v in (arg[i] or usage("--sigma needs values")):gmatch("[^,]+") do
+      for v in (take() or usage("--sigma needs values")):gmatch("[^,]+") do
         opt.sigmas[#opt.sigmas + 1] = tonumber(v) or usage("--sigma: numbers expected")
       end
-    elseif a == "--seeds" then
-      i = i + 1
-      opt.seeds = tonumber(arg[i]) or usage("--seeds needs a number")
-    elseif a == "--from" then
-      i = i + 1
-      opt.from = tonumber(arg[i]) or usage("--from needs a number")
-    elseif a == "--quick" then
-      opt.quick = true
-    elseif a == "--by-age" then
-      opt.by_age = true
-    elseif a == "--set" then
-      i = i + 1
-      local name, value = (arg[i] or ""):match("^([%u_%d]+)=([-%d.eE+]+)$")
-      if not name or type(track[name]) ~= "number" then
-        usage("--set NAME=NUMBER (a tagpose.track constant)")
-      end
-      track[name] = tonumber(value)
-    elseif a == "--frame-time" then
-      i = i + 1
-      opt.frame_time = tonumber(arg[i]) or usage("--frame-time needs a number")
-    elseif a:sub(1, 2) == "--" then
-      usage("unknown option " .. a)
-    else
-      opt.dirs[#opt.dirs + 1] = a
-    end
-    i = i + 1
-  end
+    end,
+    ["--seeds"] = number("seeds", "--seeds needs a number"),
+    ["--from"] = number("from", "--from needs a number"),
+    ["--quick"] = function() opt.quick = true end,
+    ["--by-age"] = function() opt.by_age = true end,
+    ["--set"] = bench.set_constant(track, usage),
+    ["--frame-time"] = number("frame_time", "--frame-time needs a number"),
+  }, usage)
   if #opt.dirs == 0 then
     local p = io.popen('ls -d bench/realdata/builderbot-* 2>/dev/null')
     for d in p:lines() do opt.dirs[#opt.dirs + 1] = d end

@@ -30,7 +30,8 @@
 -- paired comparisons between two versions); `--set NAME=VALUE` sets a `tagpose.track` constant
 -- (for measuring it).
 
-package.path = "./src/?.lua;./src/?/init.lua;" .. package.path
+package.path = "./src/?.lua;./src/?/init.lua;./bench/lib/?.lua;" .. package.path
+local bench = require("confidence")
 local tagpose = require("tagpose")
 local log = require("tagpose.tools.log")
 local rotation = require("tagpose.core.rotation")
@@ -47,75 +48,25 @@ local function usage(msg)
   os.exit(2)
 end
 
-local opt = { dirs = {}, first = 5 }
-do
-  local i = 1
-  while i <= #arg do
-    local a = arg[i]
-    if a == "--sigma" then
-      i = i + 1
-      opt.sigma = tonumber(arg[i] or "") or usage("--sigma needs a number")
-    elseif a == "--meta-sigma" then
-      opt.meta_sigma = true
-    elseif a == "--kinds" then
-      opt.kinds = true
-    elseif a == "--first" then
-      i = i + 1
-      opt.first = tonumber(arg[i] or "") or usage("--first needs a number")
-    elseif a == "--by-set" then
-      opt.by_set = true
-    elseif a == "--quick" then
-      opt.quick = true
-    elseif a == "--set" then
-      i = i + 1
-      local name, value = (arg[i] or ""):match("^([%u_%d]+)=([-%d.eE+]+)$")
-      if not name or type(track[name]) ~= "number" then
-        usage("--set NAME=NUMBER (a tagpose.track constant)")
-      end
-      track[name] = tonumber(value)
-    elseif a == "--dump" then
-      i = i + 1
-      opt.dump = arg[i] or usage("--dump needs a file")
-    elseif a:sub(1, 2) == "--" then
-      usage("unknown option " .. a)
-    else
-      opt.dirs[#opt.dirs + 1] = a
-    end
-    i = i + 1
-  end
-  if #opt.dirs == 0 then usage() end
+local opt = { first = 5 }
+local function flag(name)
+  return function() opt[name] = true end
 end
-
-local function exists(path)
-  local f = io.open(path, "r")
-  if f then f:close() end
-  return f ~= nil
-end
-
--- The data sets named: each DIR, or its subdirectories that hold a data set.
-local function sets_of(dirs)
-  local out = {}
-  for _, dir in ipairs(dirs) do
-    dir = dir:gsub("/*$", "")
-    if exists(dir .. "/corners.csv") then
-      out[#out + 1] = dir
-    else
-      local p = io.popen('ls -1 "' .. dir .. '"')
-      local names = {}
-      for name in p:lines() do names[#names + 1] = name end
-      p:close()
-      table.sort(names)
-      for _, name in ipairs(names) do
-        -- (a set of tag poses has its camera.lua; not a drive log of robot poses)
-        local sub = dir .. "/" .. name
-        if exists(sub .. "/truth.csv") and exists(sub .. "/camera.lua") then
-          out[#out + 1] = sub
-        end
-      end
-    end
-  end
-  return out
-end
+opt.dirs = bench.arguments(arg, {
+  ["--sigma"] = function(take)
+    opt.sigma = tonumber(take() or "") or usage("--sigma needs a number")
+  end,
+  ["--meta-sigma"] = flag("meta_sigma"),
+  ["--kinds"] = flag("kinds"),
+  ["--first"] = function(take)
+    opt.first = tonumber(take() or "") or usage("--first needs a number")
+  end,
+  ["--by-set"] = flag("by_set"),
+  ["--quick"] = flag("quick"),
+  ["--set"] = bench.set_constant(track, usage),
+  ["--dump"] = function(take) opt.dump = take() or usage("--dump needs a file") end,
+}, usage)
+if #opt.dirs == 0 then usage() end
 
 -- meta.json: σ and the kind of each sequence (by track, else by sequence number)
 local function read_meta(dir)
@@ -356,7 +307,7 @@ local function run(dir)
   smoothed_oracle(rec, rows_of, evid)
 end
 
-local sets = sets_of(opt.dirs)
+local sets = bench.sets(opt.dirs)
 for _, dir in ipairs(sets) do
   local before = { rows = pooled.rows, tracked = pooled.tracked, smoothed = pooled.smoothed }
   run(dir)

@@ -66,10 +66,21 @@ describe("tagpose-localize", function()
       "--out", out
   end
 
+  -- the run both cases read (once: the map check changes no pose)
+  local poses, check = dir .. "/poses.csv", dir .. "/check.csv"
+  local ran
+  local function localized()
+    if not ran then
+      local args = { base(poses) }
+      args[#args + 1] = "--map-check"
+      args[#args + 1] = check
+      ran = { localize(unpack(args)) }
+    end
+    assert.equal(0, ran[2], ran[1])
+  end
+
   it("places the robot of the hard log within centimetres of the truth, every frame", function()
-    local out = dir .. "/poses.csv"
-    local text, status = localize(base(out))
-    assert.equal(0, status, text)
+    localized()
     local truth = {}
     for _, r in ipairs(rows(inputs["truth.csv"])) do truth[r.time] = r end
     local frames = {}
@@ -77,7 +88,7 @@ describe("tagpose-localize", function()
     local n_frames = 0
     for _ in pairs(frames) do n_frames = n_frames + 1 end
     local errors, yaw_errors, n = {}, {}, 0
-    for _, r in ipairs(rows(out)) do
+    for _, r in ipairs(rows(poses)) do
       local t = truth[r.time]
       assert.is_truthy(t, "a row at a time the truth has: " .. r.time)
       n = n + 1
@@ -97,12 +108,7 @@ describe("tagpose-localize", function()
   -- (the whole log's map check, the moved tag first within 4 cm of its move, is bench/drive.sh's:
   -- bench/map_check.lua; here the first 12 s, the file's form)
   it("writes the map check: every tag seen, largest move first, each with its frames", function()
-    local out, check = dir .. "/p2.csv", dir .. "/check.csv"
-    local args = { base(out) }
-    args[#args + 1] = "--map-check"
-    args[#args + 1] = check
-    local text, status = localize(unpack(args))
-    assert.equal(0, status, text)
+    localized()
     local c = rows(check)
     local seen = {}
     for _, r in ipairs(rows(inputs["corners.csv"])) do seen[r.tag] = true end
@@ -163,8 +169,14 @@ describe("tagpose-localize", function()
       refused({ inputs["corners.csv"], "--map", inputs["map.json"], "--cameras",
         inputs["cameras.lua"], "--gyro", gap, "--out", out, out = out },
         "bad_gyro%.csv:%d+: a gap of 1%.5 s after time 5")
-      local text, status = localize(inputs["corners.csv"], "--map", inputs["map.json"],
-        "--cameras", inputs["cameras.lua"], "--gyro", gap, "--max-gap", "2", "--out", out)
+      -- (the frames of the first 7 s: across the gap)
+      local early = variant("corners.csv", function(l)
+        for i = #l, 2, -1 do
+          if tonumber(l[i]:match("^([^,]*)")) >= 7 then table.remove(l, i) end
+        end
+      end)
+      local text, status = localize(early, "--map", inputs["map.json"], "--cameras",
+        inputs["cameras.lua"], "--gyro", gap, "--max-gap", "2", "--out", out)
       assert.equal(0, status, text)
     end)
 

@@ -191,10 +191,9 @@ local function phantom(rng, id)
 end
 
 --- The events of a drive in time order. o: duration (s), seed, sigma (px), gyro_noise (rad),
--- push, phantom (one in every n front frames), no_odometry.
+-- push, no_odometry.
 local function drive(o)
   local rng = G.rng(o.seed or SEED)
-  local prng = G.rng((o.seed or SEED) + 1000) -- the phantoms' own: the rest stays the same
   local duration, sigma = o.duration or 10, o.sigma or 0.5
   local gyro_noise = o.gyro_noise or 0.0005
   local tags, cams = true_tags(), true_cameras()
@@ -229,16 +228,8 @@ local function drive(o)
     for _, name in ipairs({ "front", "back" }) do
       local t = k / 30 + (name == "back" and 1 / 60 or 0) + 0.001
       local x, y, yaw = truth(t, o.push)
-      local dets = detect(cams[name], tags, x, y, yaw, rng, sigma)
-      if o.phantom and name == "front" and k % o.phantom == 0 then
-        local seen = {}
-        for _, d in ipairs(dets) do seen[d.id] = true end
-        local id = 1 + k % #TAGS
-        while seen[id] do id = 1 + id % #TAGS end
-        dets[#dets + 1] = phantom(prng, id)
-      end
-      events[#events + 1] = { kind = "frame", t = t, camera = name, detections = dets,
-        truth = { x, y, yaw } }
+      events[#events + 1] = { kind = "frame", t = t, camera = name, k = k,
+        detections = detect(cams[name], tags, x, y, yaw, rng, sigma), truth = { x, y, yaw } }
     end
   end
   for i, e in ipairs(events) do e.seq = i end
@@ -247,6 +238,28 @@ local function drive(o)
     return a.seq < b.seq
   end)
   return events
+end
+
+-- A drive's events before `before` s, a phantom added to one front frame in `every` (a map id
+-- not in view): the rest are the drive's own, so its run is the one to compare with, frame by
+-- frame (the run is causal: its frames before `before` s are those of a run cut there).
+local function with_phantoms(events, every, before)
+  local prng = G.rng(SEED + 1000)
+  local out = {}
+  for _, e in ipairs(events) do
+    if e.t >= before then break end
+    if e.kind == "frame" and e.camera == "front" and e.k % every == 0 then
+      local seen, dets = {}, {}
+      for i, d in ipairs(e.detections) do seen[d.id], dets[i] = true, d end
+      local id = 1 + e.k % #TAGS
+      while seen[id] do id = 1 + id % #TAGS end
+      dets[#dets + 1] = phantom(prng, id)
+      e = { kind = "frame", t = e.t, camera = e.camera, k = e.k, detections = dets,
+        truth = e.truth }
+    end
+    out[#out + 1] = e
+  end
+  return out
 end
 
 -- Feed events to a localizer: the frames' {event =, result =} in the order fed.
@@ -307,16 +320,28 @@ local function field(list, key)
   return out
 end
 
--- The share of frames whose planar error is inside the reported 95 % ellipse.
+-- The share of frames whose planar error is inside the reported 95 % ellipse, and the mean of
+-- the errors' squared Mahalanobis distances: 2 where the covariance is the errors' own, 0.5
+-- where it is 4 times too large.
 local function coverage(errs)
-  local inside = 0
+  local inside, sum = 0, 0
   for _, e in ipairs(errs) do
     local C = e.r.covariance
     local a, b, d = C[1][1], C[1][2], C[2][2]
     local m2 = (d * e.dx * e.dx - 2 * b * e.dx * e.dy + a * e.dy * e.dy) / (a * d - b * b)
     if m2 <= CHI2_2_95 then inside = inside + 1 end
+    sum = sum + m2
   end
-  return inside / #errs
+  return inside / #errs, sum / #errs
+end
+
+-- The frames' 95 % regions cover 85-100 % of them (a covariance too small fails) and are not
+-- 4 times too large or more (the mean squared distance at least 0.5).
+local function covers(errs)
+  local c, m2 = coverage(errs)
+  local figures = ("seed %d: %.1f %% of %d frames inside; mean squared distance %.3f (2 for a "
+    .. "covariance that is the errors' own)"):format(SEED, 100 * c, #errs, m2)
+  return c >= 0.85 and c <= 1 and m2 >= 0.5, figures
 end
 
 local function contains(list, id)
@@ -357,6 +382,9 @@ local function with(base, extra)
   return o
 end
 
+-- The drive without gyro noise: it ends before 5 s, where the late camera's case cuts drives.
+local EXACT_GYRO = { gyro_noise = 0, duration = 4.98 }
+
 -- The main drive and its fused run with the default options.
 local function main_run()
   return run("fused", events_of("main", { seed = SEED }), nil)
@@ -365,6 +393,13 @@ end
 ---------------------------------------------------------------------------------------------
 
 describe("tagpose.localizer", function()
+  -- the drives and runs kept for the cases (some 30 MB) let go, and collected, once they are
+  -- done: held, or left to the collector, they slow the specs that run after this file
+  teardown(function()
+    cache = {}
+    collectgarbage()
+  end)
+
   describe("fused (odometry, gyro, two cameras)", function()
     it("tracks the robot to 2 cm median, 10 cm at worst, after the first second; learns the "
       .. "gyro's offset to 1°; heading p95 under 1°", function()
@@ -430,50 +465,51 @@ describe("tagpose.localizer", function()
   end)
 
   describe("covariance (mounts and map exact, their sigmas 0)", function()
-    it("fused, pixel and odometry noise, a noiseless gyro: 95 % region covers 85-100 %",
-      function()
-        local events = events_of("exact gyro", { gyro_noise = 0, duration = 8 })
-        local errs = errors(run("noise only", events, NOISE_ONLY), 1)
-        local c = coverage(errs)
-        local figures = ("seed %d: %.1f %% of %d frames inside"):format(SEED, 100 * c, #errs)
-        assert.is_true(c >= 0.85 and c <= 1, figures)
+    -- 5 s drives; bench/drive.sh reports the 95 % coverage of 60 s logs
+    it("fused, pixel and odometry noise, a noiseless gyro: 95 % region covers 85-100 %, and is "
+      .. "not 4 times too large", function()
+        local errs = errors(run("noise only", events_of("exact gyro", EXACT_GYRO), NOISE_ONLY), 1)
+        assert.is_true(covers(errs))
       end)
 
-    it("single, a gyro with noise gyro_sigma (the default 0.1°): covers 85-100 %", function()
+    it("single, a gyro with noise gyro_sigma (the default 0.1°): covers 85-100 %, and is not 4 "
+      .. "times too large", function()
       local events = events_of("single noisy gyro",
-        { no_odometry = true, gyro_noise = localizer.DEFAULTS.gyro_sigma, duration = 8 })
+        { no_odometry = true, gyro_noise = localizer.DEFAULTS.gyro_sigma, duration = 5 })
       local errs = errors(run("single noisy gyro", events, with(NOISE_ONLY, { mode = "single" })),
         1)
-      local c = coverage(errs)
-      local figures = ("seed %d: %.1f %% of %d frames inside"):format(SEED, 100 * c, #errs)
-      assert.is_true(c >= 0.85 and c <= 1, figures)
+      assert.is_true(covers(errs))
     end)
 
-    it("fused, a gyro with noise gyro_sigma (the default 0.1°): covers 85-100 % "
-      .. "[KNOWN BUG: pending]", function()
+    it("fused, a gyro with noise gyro_sigma (the default 0.1°): covers 85-100 %, and is not 4 "
+      .. "times too large [KNOWN BUG: pending]", function()
       -- The filter's update (filter.lua Filter:update, called from init.lua process_frame)
       -- compares the frame's heading with gyro − c but leaves the gyro's noise (gyro_sigma) out
       -- of the innovation's covariance: gyro noise is taken for heading information, moves x, y
       -- through the frame's x-yaw correlation, and the covariance does not carry it
       -- (gyro_sigma changes neither the estimate nor its planar covariance).
       local events = events_of("noisy gyro",
-        { gyro_noise = localizer.DEFAULTS.gyro_sigma, duration = 8 })
+        { gyro_noise = localizer.DEFAULTS.gyro_sigma, duration = 5 })
       local errs = errors(run("noisy gyro", events, NOISE_ONLY), 1)
-      local c = coverage(errs)
-      local figures = ("seed %d: %.1f %% of %d frames inside; planar error median %.4f m"):format(
-        SEED, 100 * c, #errs, quantile(field(errs, "d"), 0.5))
-      if c < 0.85 then
+      local ok, figures = covers(errs)
+      figures = ("%s; planar error median %.4f m"):format(figures, quantile(field(errs, "d"), 0.5))
+      if coverage(errs) < 0.85 then
         pending("KNOWN BUG: the fused filter ignores the gyro's noise (gyro_sigma): " .. figures)
       end
-      assert.is_true(c >= 0.85 and c <= 1, figures)
+      assert.is_true(ok, figures)
     end)
   end)
 
   describe("outliers", function()
     local MOVED = 3 -- on the wall x = −3; moved 0.3 m along it in the map only
 
+    -- (the main drive's first 5 s)
     local function moved_run()
-      return run("moved", events_of("main", { seed = SEED }), nil, { [MOVED] = { 0, 0.3, 0 } })
+      local events = {}
+      for _, e in ipairs(events_of("main", { seed = SEED })) do
+        if e.t < 5 then events[#events + 1] = e end
+      end
+      return run("moved", events, nil, { [MOVED] = { 0, 0.3, 0 } })
     end
 
     it("a tag moved 0.3 m in the map: the error stays small and the tag is never used with two "
@@ -520,11 +556,16 @@ describe("tagpose.localizer", function()
       assert.equal(crowded, listed, figures)
     end)
 
+    -- the drive's first 5 s with phantoms, against the run without them
     local function phantom_runs(mode, every)
-      local o = { phantom = every, no_odometry = mode == "single" }
-      local clean = mode == "single" and run("single", events_of("single", { no_odometry = true }),
-        { mode = "single" }) or main_run()
-      local dirty = run(mode .. " phantom " .. every, events_of(mode .. " phantom " .. every, o),
+      local events, clean
+      if mode == "single" then
+        events = events_of("single", { no_odometry = true })
+        clean = run("single", events, { mode = "single" })
+      else
+        events, clean = events_of("main", { seed = SEED }), main_run()
+      end
+      local dirty = run(mode .. " phantom " .. every, with_phantoms(events, every, 5),
         { mode = mode })
       -- the figures: how far the phantoms moved the estimate, the frames they cost
       local worst, worst_t, lost, changed, count, listed = 0, 0, 0, 0, 0, 0
@@ -558,8 +599,8 @@ describe("tagpose.localizer", function()
 
     it("a phantom detection (a random quad with a map id not in view) does not move the fused "
       .. "estimate by 5 cm", function()
-      local p = phantom_runs("fused", 5)
-      assert.is_true(p.count > 50, p.figures)
+      local p = phantom_runs("fused", 3)
+      assert.is_true(p.count > 40, p.figures)
       assert.is_true(p.worst <= 0.05, p.figures)
     end)
 
@@ -568,7 +609,7 @@ describe("tagpose.localizer", function()
       -- frame.solve fits every tag jointly before it tests any: a gross outlier drags the fit
       -- until the real tags are the worst, they are taken out one by one, and the phantom left
       -- alone fails the priors (the frame gives nothing) or, in single mode, is the answer.
-      local p = phantom_runs("fused", 5)
+      local p = phantom_runs("fused", 3)
       if p.lost + p.changed > 0 then pending("KNOWN BUG: " .. p.figures) end
       assert.equal(0, p.lost + p.changed, p.figures)
     end)
@@ -660,10 +701,10 @@ describe("tagpose.localizer", function()
 
     it("the back camera 50 ms late (history 1 s): its results are those of the run in time "
       .. "order, to 1e-9 (mount and map sigmas 0)", function()
-      local events = events_of("exact gyro", { gyro_noise = 0, duration = 8 })
-      local options = with(NOISE_ONLY, { history = 1 })
-      local cut = cut_run("exact gyro", events, NOISE_ONLY)
-      local c = compare_late(cut[3], run("noise only", events, NOISE_ONLY), cut[2], options)
+      -- the drive ends before T: its run is the run in time order, cut at T
+      local events = events_of("exact gyro", EXACT_GYRO)
+      local in_order, loc = run("noise only", events, NOISE_ONLY)
+      local c = compare_late(events, in_order, loc, with(NOISE_ONLY, { history = 1 }))
       assert.is_true(c.count > 140)
       assert.same({}, c.pose)
       assert.same({}, c.covariance)

@@ -169,24 +169,30 @@ describe("tagpose-replay and tagpose-calibrate", function()
       -- parent that ignores it) the write fails instead, and that is status 1 and a message
       local cases = { { REPLAY, "log.csv" }, { REPLAY, "log.csv --out -" },
         { CALIBRATE, "cube/corners.csv --layout cube/nominal.csv" } }
+      local jobs, scripts = {}, {}
       for _, c in ipairs(cases) do
         local parts = { run.quote(run.lua()), run.quote(os.getenv("PWD") .. "/" .. c[1]) }
         for a in c[2]:gmatch("%S+") do parts[#parts + 1] = run.quote(a) end
-        -- the reader (`true`) is gone before the command writes
-        local pipeline = "{ sleep 0.2; " .. table.concat(parts, " ")
-          .. " 2>err.txt; echo $? >status.txt; } | true"
         for _, ignored in ipairs({ false, true }) do
-          local script = (ignored and "trap '' PIPE; " or "") .. pipeline
-          run.run("cd " .. run.quote(dir) .. " && sh -c " .. run.quote(script))
-          local status = tonumber(run.read(dir .. "/status.txt"))
-          local said = run.read(dir .. "/err.txt")
-          local name = c[2] .. (ignored and " (SIGPIPE ignored)" or "")
-          if ignored or status ~= 141 then
-            assert.equal(1, status, name .. ": " .. said)
-            assert.matches(": standard output: Broken pipe\n$", said, 1, false, name)
-          else
-            assert.equal("", said, name)
-          end
+          local i = #jobs + 1
+          jobs[i] = { name = c[2] .. (ignored and " (SIGPIPE ignored)" or ""), ignored = ignored }
+          -- the reader (`true`) is gone before the command writes
+          local script = (ignored and "trap '' PIPE; " or "") .. "{ sleep 0.2; "
+            .. table.concat(parts, " ") .. " 2>err" .. i .. ".txt; echo $? >status" .. i
+            .. ".txt; } | true"
+          scripts[i] = "sh -c " .. run.quote(script) .. " &"
+        end
+      end
+      -- all at once (their sleeps overlap), each with its own files
+      run.run("cd " .. run.quote(dir) .. " && { " .. table.concat(scripts, " ") .. " wait; }")
+      for i, job in ipairs(jobs) do
+        local status = tonumber(run.read(dir .. "/status" .. i .. ".txt"))
+        local said = run.read(dir .. "/err" .. i .. ".txt")
+        if job.ignored or status ~= 141 then
+          assert.equal(1, status, job.name .. ": " .. said)
+          assert.matches(": standard output: Broken pipe\n$", said, 1, false, job.name)
+        else
+          assert.equal("", said, job.name)
         end
       end
     end)

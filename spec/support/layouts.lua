@@ -218,11 +218,7 @@ function L.write_log(dir, truth, camera, rng, n, sigma)
       frame = frame + 1
     end
   end
-  local function write(path, text)
-    local f = assert(io.open(path, "w"))
-    f:write(text)
-    f:close()
-  end
+  local write = require("support.run").write
   write(dir .. "/corners.csv", table.concat(lines, "\n") .. "\n")
   write(dir .. "/camera.lua", ("return { fx = %.17g, fy = %.17g, cx = %.17g, cy = %.17g }\n")
     :format(camera.fx, camera.fy, camera.cx, camera.cy))
