@@ -65,41 +65,43 @@ local function start(T, out, time, s2, ax, ay, bx, by, r2, has2, ev)
 end
 
 -- Steps 1 and 2: the children of every hypothesis of `prev` and the new paths, into the
--- scratch arrays; returns the slots. (a: the first candidate's
+-- scratch arrays; returns the slots and the greatest log-weight. (a: the first candidate's
 -- measurement, b the second's, r2 their variance, half the frame's evidence halved; z1, z2 the
 -- candidates' tilt vectors squared as complex numbers, rho2 the variance of each of their
--- parts.)
+-- parts.) Every number shared by two expressions is made once: the same operations, once.
 local function branch(T, prev, dt, ax, ay, bx, by, has2, r2, half, z1r, z1i, z2r, z2i, rho2)
-  -- (the scratch arrays as locals: an upvalue costs one more instruction at every use)
+  -- (the scratch arrays and constants as locals: an upvalue costs one more instruction at
+  -- every use, and so does an integer beyond ±127 compared)
   -- luacheck: push ignore 431
   local spp, spv, svv, sfrom, x1, y1, vx1, vy1, lw1 = spp, spv, svv, sfrom, x1, y1, vx1, vy1, lw1
   local x2, y2, vx2, vy2, lw2 = x2, y2, vx2, vy2, lw2
+  local TWO_PI, JIT, LOW, HIGH = TWO_PI, JIT, -700, 700
   -- luacheck: pop
-  local h, j, q = prev.hypotheses, 0, T.PROCESS
-  local dt2 = dt * dt
+  local h, j, q, top = prev.hypotheses, 0, T.PROCESS, -math.huge
+  local dt2, dt_2 = dt * dt, 2 * dt
   local q1, q2, q3 = q * dt, q * dt2 / 2, q * dt2 * dt / 3
-  for o = 0, (prev.count - 1) * 9, 9 do
-    local vx, vy = h[o + 3], h[o + 4]
-    local x, y = h[o + 1] + vx * dt, h[o + 2] + vy * dt
-    local pp0, pv0, vv0 = h[o + 5], h[o + 6], h[o + 7]
-    local pp = pp0 + 2 * dt * pv0 + dt2 * vv0 + q3
+  for o = 1, (prev.count - 1) * 9 + 1, 9 do
+    local vx, vy = h[o + 2], h[o + 3]
+    local x, y = h[o] + vx * dt, h[o + 1] + vy * dt
+    local pp0, pv0, vv0 = h[o + 4], h[o + 5], h[o + 6]
+    local pp = pp0 + dt_2 * pv0 + dt2 * vv0 + q3
     local pv = pv0 + dt * vv0 + q2
     local vv = vv0 + q1
     -- the frame's likelihood under the hypothesis: its tilt squared against the candidates',
     -- with the prediction's spread carried through the square
     local xx, yy, xy = x * x, y * y, 2 * x * y
     local S = 4 * (xx + yy + pp) * pp + rho2
-    local qx = xx - yy
-    local lw = h[o + 8] - log(TWO_PI * S)
+    local qx, S_2 = xx - yy, 2 * S
+    local lw = h[o + 7] - log(TWO_PI * S)
     local dr, di = z1r - qx, z1i - xy
-    local l1 = (dr * dr + di * di) / (2 * S)
+    local l1 = (dr * dr + di * di) / S_2
     -- the Kalman update of either child: the same gains and covariance
     local s = pp + r2
     local g1, g2 = pp / s, pv / s
     local dx, dy = ax - x, ay - y
     j = j + 1
     x1[j], y1[j], vx1[j], vy1[j] = x + g1 * dx, y + g1 * dy, vx + g2 * dx, vy + g2 * dy
-    spp[j], spv[j], svv[j], sfrom[j] = pp - g1 * pp, pv - g1 * pv, vv - g2 * pv, h[o + 9]
+    spp[j], spv[j], svv[j], sfrom[j] = pp - g1 * pp, pv - g1 * pv, vv - g2 * pv, h[o + 8]
     local l = lw + half - l1
     if has2 then
       -- the log of the share of the children that choose either candidate, as they lie at e1
@@ -107,71 +109,88 @@ local function branch(T, prev, dt, ax, ay, bx, by, has2, r2, half, z1r, z1i, z2r
       -- exp(e2 - e1)), the difference held within ±700: on LuaJIT by min and max (a side exit
       -- here is a trace that cannot be compiled), on PUC Lua by branches (two calls of C
       -- functions cost more; the same number, NaN and -0 included)
-      local ex, ey = bx - x, by - y
-      local d = (dx * dx + dy * dy) / (2 * s) - (ex * ex + ey * ey) / (2 * s)
+      local ex, ey, s_2 = bx - x, by - y, 2 * s
+      local d = (dx * dx + dy * dy) / s_2 - (ex * ex + ey * ey) / s_2
       if JIT then
-        d = min(max(d, -700), 700)
-      elseif d < -700 then
-        d = -700
-      elseif d > 700 then
-        d = 700
+        d = min(max(d, LOW), HIGH)
+      elseif d < LOW then
+        d = LOW
+      elseif d > HIGH then
+        d = HIGH
       end
       local soft = log(1 + exp(d))
       l = l + -soft
       dr, di = z2r - qx, z2i - xy
       x2[j], y2[j], vx2[j], vy2[j] = x + g1 * ex, y + g1 * ey, vx + g2 * ex, vy + g2 * ey
-      local l2 = lw - half - (dr * dr + di * di) / (2 * S) + (d - soft)
+      local l2 = lw - half - (dr * dr + di * di) / S_2 + (d - soft)
       lw2[j] = l2
+      -- (the greatest log-weight, the children taken in the order of the slots)
+      if l > top then top = l end
+      if l2 > top then top = l2 end
+    elseif l > top then
+      top = l
     end
     lw1[j] = l
   end
   -- a new path at either candidate, with the motion history forgotten
   local base = log(T.BIRTH) + LOG_DISK
+  local l = base + half
   j = j + 1
-  x1[j], y1[j], vx1[j], vy1[j], lw1[j] = ax, ay, 0, 0, base + half
+  x1[j], y1[j], vx1[j], vy1[j], lw1[j] = ax, ay, 0, 0, l
   spp[j], spv[j], svv[j], sfrom[j] = r2, 0, T.RATE, 0
-  if has2 then x2[j], y2[j], vx2[j], vy2[j], lw2[j] = bx, by, 0, 0, base - half end
-  return j
+  if l > top then top = l end
+  if has2 then
+    l = base - half
+    x2[j], y2[j], vx2[j], vy2[j], lw2[j] = bx, by, 0, 0, l
+    if l > top then top = l end
+  end
+  return j, top
 end
 
--- The children's weights (relative to the best), each candidate's children in order of
--- weight, best first, in `run1` and `run2` (insertions, stable: the children come nearly in
--- order, their parents kept best first; the runs' merge by weight is the order of all the
--- children), and for smoothing the probability of the previous frame's first candidate given
--- each of this frame's. Returns the runs' lengths and the two probabilities.
-local function weigh(ns, has2, p_prev)
-  -- luacheck: push ignore 431
-  local lw1, lw2, w1, w2, sfrom, run1, run2 = lw1, lw2, w1, w2, sfrom, run1, run2
-  -- luacheck: pop
-  local top = -math.huge
+-- One candidate's children: their weights relative to the greatest log-weight `top` (into
+-- `w`), and their order of weight, best first, into `run` (insertion, stable: the children
+-- come nearly in order, their parents kept best first, so a child is most often no heavier
+-- than the last placed, whose weight `low` holds; placed at the end then, it is compared once).
+-- (Written out, not a function per child: a call per child costs more than the sort.)
+local function order(ns, top, lw, w, run)
+  local exp = exp -- luacheck: ignore 431
+  local low = math.huge -- (no weight is above it: the first child goes first)
   for j = 1, ns do
-    if lw1[j] > top then top = lw1[j] end
-    if has2 and lw2[j] > top then top = lw2[j] end
-  end
-  local j11, j12, j21, j22 = 0, 0, 0, 0
-  local n1, n2, wb = 0, 0, 0
-  for j = 1, ns do
-    -- (the insertions written out: a function call per child costs more than the sort)
-    local wa = exp(lw1[j] - top)
-    w1[j] = wa
-    local r = n1
-    while r >= 1 and w1[run1[r]] < wa do
-      run1[r + 1] = run1[r]
-      r = r - 1
-    end
-    run1[r + 1] = j
-    n1 = n1 + 1
-    if has2 then
-      wb = exp(lw2[j] - top)
-      w2[j] = wb
-      r = n2
-      while r >= 1 and w2[run2[r]] < wb do
-        run2[r + 1] = run2[r]
+    local wj = exp(lw[j] - top)
+    w[j] = wj
+    if low < wj then
+      local r = j - 2
+      run[j] = run[j - 1]
+      while r >= 1 and w[run[r]] < wj do
+        run[r + 1] = run[r]
         r = r - 1
       end
-      run2[r + 1] = j
-      n2 = n2 + 1
+      run[r + 1] = j
+    else
+      run[j], low = j, wj
     end
+  end
+end
+
+-- The children's weights (relative to the best, `top`), each candidate's children in order of
+-- weight, best first, in `run1` and `run2` (the runs' merge by weight is the order of all the
+-- children), and for smoothing the probability of the previous frame's first candidate given
+-- each of this frame's. Returns the runs' lengths and the two probabilities.
+local function weigh(ns, has2, p_prev, top)
+  -- luacheck: push ignore 431
+  local w1, w2, sfrom = w1, w2, sfrom
+  -- luacheck: pop
+  order(ns, top, lw1, w1, run1)
+  local n2 = 0
+  if has2 then
+    order(ns, top, lw2, w2, run2)
+    n2 = ns
+  end
+  local j11, j12, j21, j22 = 0, 0, 0, 0
+  local wb = 0
+  for j = 1, ns do
+    local wa = w1[j]
+    if has2 then wb = w2[j] end
     local from = sfrom[j]
     if from == 0 then
       -- the new paths: their previous choice as the previous frame believed
@@ -188,7 +207,7 @@ local function weigh(ns, has2, p_prev)
   local a, b = 0.5, 0.5
   if j11 + j21 > 0 then a = j11 / (j11 + j21) end
   if j12 + j22 > 0 then b = j12 / (j12 + j22) end
-  return n1, n2, a, b
+  return ns, n2, a, b
 end
 
 -- Step 4: the kept children as the new state; returns the candidate to return and its
@@ -261,9 +280,9 @@ function M.step(T, prev, a, b, size, time, out, llr)
   if not prev or prev.count == 0 then
     pick, p = start(T, out, now, s2, ax, ay, bx, by, r2, has2, ev)
   else
-    local slots = branch(T, prev, dt, ax, ay, bx, by, has2, r2, 0.5 * ev, z1r, z1i, z2r, z2i,
-      rho * rho)
-    local n1, n2, back_first, back_second = weigh(slots, has2, prev.first)
+    local slots, top = branch(T, prev, dt, ax, ay, bx, by, has2, r2, 0.5 * ev, z1r, z1i, z2r,
+      z2i, rho * rho)
+    local n1, n2, back_first, back_second = weigh(slots, has2, prev.first, top)
     local m = merge(T, r2, n1, n2)
     pick, p = emit(out, m, now, s2, back_first, back_second)
     if not (p == p) then
