@@ -63,73 +63,71 @@ end
 -- runs where it stopped (a child before them of a weight above `TINY` was considered).
 local function first_pass(room, limit, r2, n1, n2)
   -- luacheck: push ignore 431
-  local w1, w2, run1, run2, kept, spp = w1, w2, run1, run2, kept, spp
+  local w1, w2, run1, run2, kept, spp, TINY = w1, w2, run1, run2, kept, spp, TINY
+  local x1, y1, vx1, vy1, x2, y2, vx2, vy2 = x1, y1, vx1, vy1, x2, y2, vx2, vy2
   local k1, k1x, k1y, k1vx, k1vy, k1r = k1, k1x, k1y, k1vx, k1vy, k1r
   local k2, k2x, k2y, k2vx, k2vy, k2r = k2, k2x, k2y, k2vx, k2vy, k2r
   -- luacheck: pop
   local m, c1, c2, a, b = 0, 0, 0, 1, 1
+  -- the runs' heads: the slot of each run's next child (nil past its end) and its weight (a
+  -- weight changes only once its child is kept: read when the child comes to the head, it is
+  -- the weight it has when it is taken)
+  local ja, wa, jb, wb = nil, 0, nil, 0
+  if n1 >= 1 then ja = run1[1]; wa = w1[ja] end
+  if n2 >= 1 then jb = run2[1]; wb = w2[jb] end
   while m < room do
-    local first
-    if a > n1 then
-      if b > n2 then break end
-      first = false
-    elseif b > n2 then
-      first = true
-    else
-      local ja, jb = run1[a], run2[b]
-      local wa, wb = w1[ja], w2[jb]
-      first = wa > wb or (wa == wb and ja <= jb)
-    end
-    if first then
-      local j = run1[a]
-      a = a + 1
-      local w = w1[j]
-      if w > TINY then
-        local x, y, vx, vy, into = x1[j], y1[j], vx1[j], vy1[j], nil
+    if ja and (not jb or wa > wb or (wa == wb and ja <= jb)) then
+      if wa > TINY then
+        local x, y, vx, vy, into = x1[ja], y1[ja], vx1[ja], vy1[ja], nil
         for u = 1, c1 do
           local dx, r = k1x[u] - x, k1r[u]
-          if dx * dx < r then
+          local dx2 = dx * dx
+          if dx2 < r then
             local dy, dvx, dvy = k1y[u] - y, k1vx[u] - vx, k1vy[u] - vy
-            if dx * dx + dy * dy + 0.01 * (dvx * dvx + dvy * dvy) < r then
+            if dx2 + dy * dy + 0.01 * (dvx * dvx + dvy * dvy) < r then
               into = k1[u]
               break
             end
           end
         end
         if into then
-          w1[into] = w1[into] + w
+          w1[into] = w1[into] + wa
         else
           m, c1 = m + 1, c1 + 1
-          kept[m] = j
-          k1[c1], k1x[c1], k1y[c1], k1vx[c1], k1vy[c1], k1r[c1] = j, x, y, vx, vy,
-            limit * (spp[j] + r2)
+          kept[m] = ja
+          k1[c1], k1x[c1], k1y[c1], k1vx[c1], k1vy[c1], k1r[c1] = ja, x, y, vx, vy,
+            limit * (spp[ja] + r2)
         end
       end
-    else
-      local j = run2[b]
-      b = b + 1
-      local w = w2[j]
-      if w > TINY then
-        local x, y, vx, vy, into = x2[j], y2[j], vx2[j], vy2[j], nil
+      a = a + 1
+      if a <= n1 then ja = run1[a]; wa = w1[ja] else ja = nil end
+    elseif jb then
+      if wb > TINY then
+        local x, y, vx, vy, into = x2[jb], y2[jb], vx2[jb], vy2[jb], nil
         for u = 1, c2 do
           local dx, r = k2x[u] - x, k2r[u]
-          if dx * dx < r then
+          local dx2 = dx * dx
+          if dx2 < r then
             local dy, dvx, dvy = k2y[u] - y, k2vx[u] - vx, k2vy[u] - vy
-            if dx * dx + dy * dy + 0.01 * (dvx * dvx + dvy * dvy) < r then
+            if dx2 + dy * dy + 0.01 * (dvx * dvx + dvy * dvy) < r then
               into = k2[u]
               break
             end
           end
         end
         if into then
-          w2[into] = w2[into] + w
+          w2[into] = w2[into] + wb
         else
           m, c2 = m + 1, c2 + 1
-          kept[m] = -j
-          k2[c2], k2x[c2], k2y[c2], k2vx[c2], k2vy[c2], k2r[c2] = j, x, y, vx, vy,
-            limit * (spp[j] + r2)
+          kept[m] = -jb
+          k2[c2], k2x[c2], k2y[c2], k2vx[c2], k2vy[c2], k2r[c2] = jb, x, y, vx, vy,
+            limit * (spp[jb] + r2)
         end
       end
+      b = b + 1
+      if b <= n2 then jb = run2[b]; wb = w2[jb] else jb = nil end
+    else
+      break
     end
   end
   return c1, c2, a, b
