@@ -213,7 +213,10 @@ end
 -- Step 4: the kept children as the new state; returns the candidate to return and its
 -- posterior.
 local function emit(out, m, time, s2, a, b)
-  local kept, w1, w2 = kept, w1, w2 -- luacheck: ignore 431
+  -- luacheck: push ignore 431
+  local kept, w1, w2, spp, spv, svv = kept, w1, w2, spp, spv, svv
+  local x1, y1, vx1, vy1, x2, y2, vx2, vy2 = x1, y1, vx1, vy1, x2, y2, vx2, vy2
+  -- luacheck: pop
   local total, first = 0, 0
   for u = 1, m do
     local j = kept[u]
@@ -228,20 +231,22 @@ local function emit(out, m, time, s2, a, b)
   local p1 = first / total
   out.time, out.sigma2, out.first, out.back_first, out.back_second, out.count = time, s2, p1, a,
     b, m
-  local h = out.hypotheses
+  -- (o: the place of the hypothesis's first number, moved on a stride at a time)
+  local h, o = out.hypotheses, 1
   for u = 1, m do
-    local j, o = kept[u], (u - 1) * 9
+    local j = kept[u]
     if j > 0 then
-      h[o + 1], h[o + 2], h[o + 3], h[o + 4] = x1[j], y1[j], vx1[j], vy1[j]
-      h[o + 8], h[o + 9] = log(w1[j] / total), 1
+      h[o], h[o + 1], h[o + 2], h[o + 3] = x1[j], y1[j], vx1[j], vy1[j]
+      h[o + 7], h[o + 8] = log(w1[j] / total), 1
     else
       j = -j
-      h[o + 1], h[o + 2], h[o + 3], h[o + 4] = x2[j], y2[j], vx2[j], vy2[j]
-      h[o + 8], h[o + 9] = log(w2[j] / total), 2
+      h[o], h[o + 1], h[o + 2], h[o + 3] = x2[j], y2[j], vx2[j], vy2[j]
+      h[o + 7], h[o + 8] = log(w2[j] / total), 2
     end
-    h[o + 5], h[o + 6], h[o + 7] = spp[j], spv[j], svv[j]
+    h[o + 4], h[o + 5], h[o + 6] = spp[j], spv[j], svv[j]
+    o = o + 9
   end
-  for i = m * 9 + 1, #h do h[i] = nil end
+  for i = o, #h do h[i] = nil end
   if p1 >= 0.5 then return 1, p1 end
   return 2, 1 - p1
 end
