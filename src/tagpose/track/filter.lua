@@ -151,10 +151,14 @@ end
 -- `w`), and their order of weight, best first, into `run` (insertion, stable: the children
 -- come nearly in order, their parents kept best first, so a child is most often no heavier
 -- than the last placed, whose weight `low` holds; placed at the end then, it is compared once).
--- (Written out, not a function per child: a call per child costs more than the sort.)
-local function order(ns, top, lw, w, run)
-  local exp = exp -- luacheck: ignore 431
+-- (Written out, not a function per child: a call per child costs more than the sort.) Returns
+-- the weight of the children whose parents chose the previous frame's first candidate and of
+-- those whose parents chose its second, a new path's shared as the previous frame believed
+-- (`p_prev`, the first's probability).
+local function order(ns, top, lw, w, run, p_prev)
+  local exp, sfrom = exp, sfrom -- luacheck: ignore 431
   local low = math.huge -- (no weight is above it: the first child goes first)
+  local one, two = 0, 0
   for j = 1, ns do
     local wj = exp(lw[j] - top)
     w[j] = wj
@@ -169,7 +173,16 @@ local function order(ns, top, lw, w, run)
     else
       run[j], low = j, wj
     end
+    local from = sfrom[j]
+    if from == 1 then
+      one = one + wj
+    elseif from == 0 then
+      one, two = one + wj * p_prev, two + wj * (1 - p_prev)
+    else
+      two = two + wj
+    end
   end
+  return one, two
 end
 
 -- The children's weights (relative to the best, `top`), each candidate's children in order of
@@ -177,36 +190,14 @@ end
 -- children), and for smoothing the probability of the previous frame's first candidate given
 -- each of this frame's. Returns the runs' lengths and the two probabilities.
 local function weigh(ns, has2, p_prev, top)
-  -- luacheck: push ignore 431
-  local w1, w2, sfrom = w1, w2, sfrom
-  -- luacheck: pop
-  order(ns, top, lw1, w1, run1)
-  local n2 = 0
+  local a, b, n2 = 0.5, 0.5, 0
+  local one, two = order(ns, top, lw1, w1, run1, p_prev)
+  if one + two > 0 then a = one / (one + two) end
   if has2 then
-    order(ns, top, lw2, w2, run2)
+    one, two = order(ns, top, lw2, w2, run2, p_prev)
+    if one + two > 0 then b = one / (one + two) end
     n2 = ns
   end
-  local j11, j12, j21, j22 = 0, 0, 0, 0
-  local wb = 0
-  for j = 1, ns do
-    local wa = w1[j]
-    if has2 then wb = w2[j] end
-    local from = sfrom[j]
-    if from == 0 then
-      -- the new paths: their previous choice as the previous frame believed
-      j11, j21 = j11 + wa * p_prev, j21 + wa * (1 - p_prev)
-      if has2 then j12, j22 = j12 + wb * p_prev, j22 + wb * (1 - p_prev) end
-    elseif from == 1 then
-      j11 = j11 + wa
-      if has2 then j12 = j12 + wb end
-    else
-      j21 = j21 + wa
-      if has2 then j22 = j22 + wb end
-    end
-  end
-  local a, b = 0.5, 0.5
-  if j11 + j21 > 0 then a = j11 / (j11 + j21) end
-  if j12 + j22 > 0 then b = j12 / (j12 + j22) end
   return ns, n2, a, b
 end
 
