@@ -25,6 +25,18 @@ local children = require("tagpose.track.merge")
 local sqrt, exp, log, min, max = math.sqrt, math.exp, math.log, math.min, math.max
 local JIT = compat.jit
 
+-- The nine numbers of a hypothesis, from place o of a state's array (o + 8 its last): on PUC
+-- Lua table.unpack, one call that costs fewer instructions than nine reads; on LuaJIT a
+-- function its traces take in (a trace cannot go through unpack: it ends there)
+-- luacheck: push compat
+local read_hypothesis = table.unpack or unpack
+-- luacheck: pop
+if JIT then
+  read_hypothesis = function(h, o)
+    return h[o], h[o + 1], h[o + 2], h[o + 3], h[o + 4], h[o + 5], h[o + 6], h[o + 7], h[o + 8]
+  end
+end
+
 local M = {}
 
 local LOG_DISK = log(1 / math.pi) -- log density of a tilt vector uniform over the unit disk
@@ -81,9 +93,8 @@ local function branch(T, prev, dt, ax, ay, bx, by, has2, r2, half, z1r, z1i, z2r
   local dt2, dt_2 = dt * dt, 2 * dt
   local q1, q2, q3 = q * dt, q * dt2 / 2, q * dt2 * dt / 3
   for o = 1, (prev.count - 1) * 9 + 1, 9 do
-    local vx, vy = h[o + 2], h[o + 3]
-    local x, y = h[o] + vx * dt, h[o + 1] + vy * dt
-    local pp0, pv0, vv0 = h[o + 4], h[o + 5], h[o + 6]
+    local x0, y0, vx, vy, pp0, pv0, vv0, lw0, from = read_hypothesis(h, o, o + 8)
+    local x, y = x0 + vx * dt, y0 + vy * dt
     local pp = pp0 + dt_2 * pv0 + dt2 * vv0 + q3
     local pv = pv0 + dt * vv0 + q2
     local vv = vv0 + q1
@@ -92,7 +103,7 @@ local function branch(T, prev, dt, ax, ay, bx, by, has2, r2, half, z1r, z1i, z2r
     local xx, yy, xy = x * x, y * y, 2 * x * y
     local S = 4 * (xx + yy + pp) * pp + rho2
     local qx, S_2 = xx - yy, 2 * S
-    local lw = h[o + 7] - log(TWO_PI * S)
+    local lw = lw0 - log(TWO_PI * S)
     local dr, di = z1r - qx, z1i - xy
     local l1 = (dr * dr + di * di) / S_2
     -- the Kalman update of either child: the same gains and covariance
@@ -101,7 +112,7 @@ local function branch(T, prev, dt, ax, ay, bx, by, has2, r2, half, z1r, z1i, z2r
     local dx, dy = ax - x, ay - y
     j = j + 1
     x1[j], y1[j], vx1[j], vy1[j] = x + g1 * dx, y + g1 * dy, vx + g2 * dx, vy + g2 * dy
-    spp[j], spv[j], svv[j], sfrom[j] = pp - g1 * pp, pv - g1 * pv, vv - g2 * pv, h[o + 8]
+    spp[j], spv[j], svv[j], sfrom[j] = pp - g1 * pp, pv - g1 * pv, vv - g2 * pv, from
     local l = lw + half - l1
     if has2 then
       -- the log of the share of the children that choose either candidate, as they lie at e1
