@@ -28,9 +28,7 @@ local JIT = compat.jit
 -- The nine numbers of a hypothesis, from place o of a state's array (o + 8 its last): on PUC
 -- Lua table.unpack, one call that costs fewer instructions than nine reads; on LuaJIT a
 -- function its traces take in (a trace cannot go through unpack: it ends there)
--- luacheck: push compat
-local read_hypothesis = table.unpack or unpack
--- luacheck: pop
+local read_hypothesis = compat.unpack
 if JIT then
   read_hypothesis = function(h, o)
     return h[o], h[o + 1], h[o + 2], h[o + 3], h[o + 4], h[o + 5], h[o + 6], h[o + 7], h[o + 8]
