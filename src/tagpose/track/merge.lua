@@ -38,8 +38,8 @@ local function consider(j, pick, m, c, limit, r2)
     kx, ky, kvx, kvy, kr, ki = k2x, k2y, k2vx, k2vy, k2r, k2
   end
   for u = 1, c do
-    -- (the sum's terms are not negative: one alone as large as the radius rules the child
-    -- out, to the bit)
+    -- (the sum's terms are not negative: its first term or two alone as large as the radius
+    -- rule the child out, to the bit; `first_pass` looks at them in turn)
     local dx, r = kx[u] - x, kr[u]
     if dx * dx < r then
       local dy, dvx, dvy = ky[u] - y, kvx[u] - vx, kvy[u] - vy
@@ -80,13 +80,19 @@ local function first_pass(room, limit, r2, n1, n2)
       if wa > TINY then
         local x, y, vx, vy, into = x1[ja], y1[ja], vx1[ja], vy1[ja], nil
         for u = 1, c1 do
+          -- (the sum's terms are not negative: its first term, then its first two, as large as
+          -- the radius rule the child out, to the bit, before the others are made)
           local dx, r = k1x[u] - x, k1r[u]
-          local dx2 = dx * dx
-          if dx2 < r then
-            local dy, dvx, dvy = k1y[u] - y, k1vx[u] - vx, k1vy[u] - vy
-            if dx2 + dy * dy + 0.01 * (dvx * dvx + dvy * dvy) < r then
-              into = k1[u]
-              break
+          local d2 = dx * dx
+          if d2 < r then
+            local dy = k1y[u] - y
+            d2 = d2 + dy * dy
+            if d2 < r then
+              local dvx, dvy = k1vx[u] - vx, k1vy[u] - vy
+              if d2 + 0.01 * (dvx * dvx + dvy * dvy) < r then
+                into = k1[u]
+                break
+              end
             end
           end
         end
@@ -106,12 +112,16 @@ local function first_pass(room, limit, r2, n1, n2)
         local x, y, vx, vy, into = x2[jb], y2[jb], vx2[jb], vy2[jb], nil
         for u = 1, c2 do
           local dx, r = k2x[u] - x, k2r[u]
-          local dx2 = dx * dx
-          if dx2 < r then
-            local dy, dvx, dvy = k2y[u] - y, k2vx[u] - vx, k2vy[u] - vy
-            if dx2 + dy * dy + 0.01 * (dvx * dvx + dvy * dvy) < r then
-              into = k2[u]
-              break
+          local d2 = dx * dx
+          if d2 < r then
+            local dy = k2y[u] - y
+            d2 = d2 + dy * dy
+            if d2 < r then
+              local dvx, dvy = k2vx[u] - vx, k2vy[u] - vy
+              if d2 + 0.01 * (dvx * dvx + dvy * dvy) < r then
+                into = k2[u]
+                break
+              end
             end
           end
         end
