@@ -90,6 +90,8 @@ local function branch(T, prev, dt, ax, ay, bx, by, has2, r2, half, z1r, z1i, z2r
   local h, j, q, top = prev.hypotheses, 0, T.PROCESS, -math.huge
   local dt2, dt_2 = dt * dt, 2 * dt
   local q1, q2, q3 = q * dt, q * dt2 / 2, q * dt2 * dt / 3
+  -- (o: a hypothesis's first place; the bound is that of the first places less one, so the
+  -- loop runs as often as they would, whatever number `count` holds)
   for o = 1, (prev.count - 1) * 9 + 1, 9 do
     local x0, y0, vx, vy, pp0, pv0, vv0, lw0, from = read_hypothesis(h, o, o + 8)
     local x, y = x0 + vx * dt, y0 + vy * dt
@@ -165,7 +167,7 @@ end
 -- those whose parents chose its second, a new path's shared as the previous frame believed
 -- (`p_prev`, the first's probability).
 local function order(ns, top, lw, w, run, p_prev)
-  local exp, sfrom = exp, sfrom -- luacheck: ignore 431
+  local sfrom = sfrom -- luacheck: ignore 431
   local low = math.huge -- (no weight is above it: the first child goes first)
   local one, two = 0, 0
   for j = 1, ns do
@@ -186,6 +188,7 @@ local function order(ns, top, lw, w, run, p_prev)
     if from == 1 then
       one = one + wj
     elseif from == 0 then
+      -- the new paths: their previous choice as the previous frame believed
       one, two = one + wj * p_prev, two + wj * (1 - p_prev)
     else
       two = two + wj
