@@ -75,7 +75,7 @@ local function start(T, out, time, s2, ax, ay, bx, by, r2, has2, ev)
 end
 
 -- Steps 1 and 2: the children of every hypothesis of `prev` and the new paths, into the
--- scratch arrays; returns the slots and the greatest log-weight. (a: the first candidate's
+-- scratch arrays; returns the slots. (a: the first candidate's
 -- measurement, b the second's, r2 their variance, half the frame's evidence halved; z1, z2 the
 -- candidates' tilt vectors squared as complex numbers, rho2 the variance of each of their
 -- parts.) Every number shared by two expressions is made once: the same operations, once.
@@ -87,7 +87,7 @@ local function branch(T, prev, dt, ax, ay, bx, by, has2, r2, half, z1r, z1i, z2r
   local x2, y2, vx2, vy2, lw2 = x2, y2, vx2, vy2, lw2
   local TWO_PI, JIT, LOW, HIGH = TWO_PI, JIT, -700, 700
   -- luacheck: pop
-  local h, j, q, top = prev.hypotheses, 0, T.PROCESS, -math.huge
+  local h, j, q = prev.hypotheses, 0, T.PROCESS
   local dt2, dt_2 = dt * dt, 2 * dt
   local q1, q2, q3 = q * dt, q * dt2 / 2, q * dt2 * dt / 3
   -- (o: a hypothesis's first place; the bound is that of the first places less one, so the
@@ -135,27 +135,16 @@ local function branch(T, prev, dt, ax, ay, bx, by, has2, r2, half, z1r, z1i, z2r
       x2[j], y2[j], vx2[j], vy2[j] = x + g1 * ex, y + g1 * ey, vx + g2 * ex, vy + g2 * ey
       local l2 = lw - half - (dr * dr + di * di) / S_2 + (d - soft)
       lw2[j] = l2
-      -- (the greatest log-weight, the children taken in the order of the slots)
-      if l > top then top = l end
-      if l2 > top then top = l2 end
-    elseif l > top then
-      top = l
     end
     lw1[j] = l
   end
   -- a new path at either candidate, with the motion history forgotten
   local base = log(T.BIRTH) + LOG_DISK
-  local l = base + half
   j = j + 1
-  x1[j], y1[j], vx1[j], vy1[j], lw1[j] = ax, ay, 0, 0, l
+  x1[j], y1[j], vx1[j], vy1[j], lw1[j] = ax, ay, 0, 0, base + half
   spp[j], spv[j], svv[j], sfrom[j] = r2, 0, T.RATE, 0
-  if l > top then top = l end
-  if has2 then
-    l = base - half
-    x2[j], y2[j], vx2[j], vy2[j], lw2[j] = bx, by, 0, 0, l
-    if l > top then top = l end
-  end
-  return j, top
+  if has2 then x2[j], y2[j], vx2[j], vy2[j], lw2[j] = bx, by, 0, 0, base - half end
+  return j
 end
 
 -- One candidate's children: their weights relative to the greatest log-weight `top` (into
@@ -197,11 +186,17 @@ local function order(ns, top, lw, w, run, p_prev)
   return one, two
 end
 
--- The children's weights (relative to the best, `top`), each candidate's children in order of
+-- The children's weights (relative to the best), each candidate's children in order of
 -- weight, best first, in `run1` and `run2` (the runs' merge by weight is the order of all the
 -- children), and for smoothing the probability of the previous frame's first candidate given
 -- each of this frame's. Returns the runs' lengths and the two probabilities.
-local function weigh(ns, has2, p_prev, top)
+local function weigh(ns, has2, p_prev)
+  local lw1, lw2 = lw1, lw2 -- luacheck: ignore 431
+  local top = -math.huge
+  for j = 1, ns do
+    if lw1[j] > top then top = lw1[j] end
+    if has2 and lw2[j] > top then top = lw2[j] end
+  end
   local a, b, n2 = 0.5, 0.5, 0
   local one, two = order(ns, top, lw1, w1, run1, p_prev)
   if one + two > 0 then a = one / (one + two) end
@@ -288,9 +283,9 @@ function M.step(T, prev, a, b, size, time, out, llr)
   if not prev or prev.count == 0 then
     pick, p = start(T, out, now, s2, ax, ay, bx, by, r2, has2, ev)
   else
-    local slots, top = branch(T, prev, dt, ax, ay, bx, by, has2, r2, 0.5 * ev, z1r, z1i, z2r,
-      z2i, rho * rho)
-    local n1, n2, back_first, back_second = weigh(slots, has2, prev.first, top)
+    local slots = branch(T, prev, dt, ax, ay, bx, by, has2, r2, 0.5 * ev, z1r, z1i, z2r, z2i,
+      rho * rho)
+    local n1, n2, back_first, back_second = weigh(slots, has2, prev.first)
     local m = merge(T, r2, n1, n2)
     pick, p = emit(out, m, now, s2, back_first, back_second)
     if not (p == p) then
