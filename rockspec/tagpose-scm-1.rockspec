@@ -99,6 +99,7 @@ build = {
     ["tagpose.rigid"] = "src/tagpose/rigid/init.lua",
     ["tagpose.rigid.model"] = "src/tagpose/rigid/model.lua",
     ["tagpose.track.filter"] = "src/tagpose/track/filter.lua",
+    ["tagpose.track.merge"] = "src/tagpose/track/merge.lua",
     ["tagpose.track"] = "src/tagpose/track/init.lua",
     ["tagpose.tracker.associate"] = "src/tagpose/tracker/associate.lua",
     ["tagpose.tracker"] = "src/tagpose/tracker/init.lua",

@@ -11,6 +11,9 @@ local M = {}
 -- argument, so `math.atan2` must come first).
 M.atan2 = math.atan2 or math.atan
 
+--- The values `t[i], ..., t[j]` (Lua 5.1's and LuaJIT's `unpack`).
+M.unpack = table.unpack or unpack
+
 local atan2 = M.atan2
 
 --- One-argument arc tangent, as `atan2(y, 1)` on every VM: Lua 5.3 and 5.4's `math.atan(y)`

@@ -9,43 +9,45 @@
 --    evidence for the candidate. A new path may start at either candidate (`BIRTH`);
 -- 3. **merge**: the children, best first, are merged where they coincide and the best
 --    `HYPOTHESES` kept, `RESERVE` places going to the best of the candidate the others did not
---    choose;
+--    choose (`tagpose.track.merge`, which holds the children's scratch arrays);
 -- 4. **emit**: the kept children become the state, with the posterior of each candidate and
 --    the smoothing numbers.
 --
--- The children live in this module's scratch arrays, one per quantity, by slot: slot j holds
--- the two children of the previous state's j-th hypothesis (the last slot, the new paths).
--- Per slot `spp, spv, svv` (the per-axis covariance the two share) and `sfrom` (the candidate
--- the parent chose, 0 for a new path); per child of the first candidate `x1, y1` (tilt), `vx1,
--- vy1` (rate), `lw1` (log-weight), `w1` (weight), of the second `x2, ..., w2`. Ties of weight
--- go to the child made first: the first candidate's of slot j before the second's of slot k
--- exactly when j <= k. A state's `hypotheses` is `tagpose.track.STRIDE` numbers per
--- hypothesis: τx, τy, their rates, the position variance, the position-rate covariance, the
--- rate variance, the log-weight (the weights sum to one in probability) and the candidate it
--- chose. Only this module reads or writes it.
+-- A state's `hypotheses` is `tagpose.track.STRIDE` numbers per hypothesis: τx, τy, their
+-- rates, the position variance, the position-rate covariance, the rate variance, the
+-- log-weight (the weights sum to one in probability) and the candidate it chose. Only this
+-- module reads or writes it.
 -- @module tagpose.track.filter
 
 local compat = require("tagpose.core.compat")
+local children = require("tagpose.track.merge")
 
 local sqrt, exp, log, min, max = math.sqrt, math.exp, math.log, math.min, math.max
 local JIT = compat.jit
+
+-- The nine numbers of a hypothesis, from place o of a state's array (o + 8 its last): on PUC
+-- Lua table.unpack, one call that costs fewer instructions than nine reads; on LuaJIT a
+-- function its traces take in (a trace cannot go through unpack: it ends there)
+local read_hypothesis = compat.unpack
+if JIT then
+  read_hypothesis = function(h, o)
+    return h[o], h[o + 1], h[o + 2], h[o + 3], h[o + 4], h[o + 5], h[o + 6], h[o + 7], h[o + 8]
+  end
+end
 
 local M = {}
 
 local LOG_DISK = log(1 / math.pi) -- log density of a tilt vector uniform over the unit disk
 local TWO_PI = 2 * math.pi
-local TINY = 1e-300 -- the least weight a kept hypothesis carries
 
--- scratch for the children of one frame (see the module's header)
-local spp, spv, svv, sfrom = {}, {}, {}, {}
-local x1, y1, vx1, vy1, lw1, w1 = {}, {}, {}, {}, {}, {}
-local x2, y2, vx2, vy2, lw2, w2 = {}, {}, {}, {}, {}, {}
--- each candidate's children in order of weight (slots), and the kept children: all (`kept`:
--- the slot, negated for the second candidate's), and per candidate their slot, tilt, rate and
--- merging radius²
-local run1, run2, kept = {}, {}, {}
-local k1, k1x, k1y, k1vx, k1vy, k1r = {}, {}, {}, {}, {}, {}
-local k2, k2x, k2y, k2vx, k2vy, k2r = {}, {}, {}, {}, {}, {}
+-- the children's scratch arrays (`tagpose.track.merge` describes them)
+local spp, spv, svv, sfrom = children.spp, children.spv, children.svv, children.sfrom
+local x1, y1, vx1, vy1, lw1, w1 = children.x1, children.y1, children.vx1, children.vy1,
+  children.lw1, children.w1
+local x2, y2, vx2, vy2, lw2, w2 = children.x2, children.y2, children.vx2, children.vy2,
+  children.lw2, children.w2
+local run1, run2, kept = children.run1, children.run2, children.kept
+local merge = children.merge
 
 -- A track's first frame: a path at each candidate, weighted by the evidence (what `step`
 -- does with no hypotheses, without its loops).
@@ -76,38 +78,41 @@ end
 -- scratch arrays; returns the slots. (a: the first candidate's
 -- measurement, b the second's, r2 their variance, half the frame's evidence halved; z1, z2 the
 -- candidates' tilt vectors squared as complex numbers, rho2 the variance of each of their
--- parts.)
+-- parts.) Every number shared by two expressions is made once: the same operations, once.
 local function branch(T, prev, dt, ax, ay, bx, by, has2, r2, half, z1r, z1i, z2r, z2i, rho2)
-  -- (the scratch arrays as locals: an upvalue costs one more instruction at every use)
+  -- (the scratch arrays and constants as locals: an upvalue costs one more instruction at
+  -- every use, and so does an integer beyond ±127 compared)
   -- luacheck: push ignore 431
   local spp, spv, svv, sfrom, x1, y1, vx1, vy1, lw1 = spp, spv, svv, sfrom, x1, y1, vx1, vy1, lw1
   local x2, y2, vx2, vy2, lw2 = x2, y2, vx2, vy2, lw2
+  local TWO_PI, JIT, LOW, HIGH = TWO_PI, JIT, -700, 700
   -- luacheck: pop
   local h, j, q = prev.hypotheses, 0, T.PROCESS
-  local dt2 = dt * dt
+  local dt2, dt_2 = dt * dt, 2 * dt
   local q1, q2, q3 = q * dt, q * dt2 / 2, q * dt2 * dt / 3
-  for o = 0, (prev.count - 1) * 9, 9 do
-    local vx, vy = h[o + 3], h[o + 4]
-    local x, y = h[o + 1] + vx * dt, h[o + 2] + vy * dt
-    local pp0, pv0, vv0 = h[o + 5], h[o + 6], h[o + 7]
-    local pp = pp0 + 2 * dt * pv0 + dt2 * vv0 + q3
+  -- (o: a hypothesis's first place; the bound is that of the first places less one, so the
+  -- loop runs as often as they would, whatever number `count` holds)
+  for o = 1, (prev.count - 1) * 9 + 1, 9 do
+    local x0, y0, vx, vy, pp0, pv0, vv0, lw0, from = read_hypothesis(h, o, o + 8)
+    local x, y = x0 + vx * dt, y0 + vy * dt
+    local pp = pp0 + dt_2 * pv0 + dt2 * vv0 + q3
     local pv = pv0 + dt * vv0 + q2
     local vv = vv0 + q1
     -- the frame's likelihood under the hypothesis: its tilt squared against the candidates',
     -- with the prediction's spread carried through the square
     local xx, yy, xy = x * x, y * y, 2 * x * y
     local S = 4 * (xx + yy + pp) * pp + rho2
-    local qx = xx - yy
-    local lw = h[o + 8] - log(TWO_PI * S)
+    local qx, S_2 = xx - yy, 2 * S
+    local lw = lw0 - log(TWO_PI * S)
     local dr, di = z1r - qx, z1i - xy
-    local l1 = (dr * dr + di * di) / (2 * S)
+    local l1 = (dr * dr + di * di) / S_2
     -- the Kalman update of either child: the same gains and covariance
     local s = pp + r2
     local g1, g2 = pp / s, pv / s
     local dx, dy = ax - x, ay - y
     j = j + 1
     x1[j], y1[j], vx1[j], vy1[j] = x + g1 * dx, y + g1 * dy, vx + g2 * dx, vy + g2 * dy
-    spp[j], spv[j], svv[j], sfrom[j] = pp - g1 * pp, pv - g1 * pv, vv - g2 * pv, h[o + 9]
+    spp[j], spv[j], svv[j], sfrom[j] = pp - g1 * pp, pv - g1 * pv, vv - g2 * pv, from
     local l = lw + half - l1
     if has2 then
       -- the log of the share of the children that choose either candidate, as they lie at e1
@@ -115,20 +120,20 @@ local function branch(T, prev, dt, ax, ay, bx, by, has2, r2, half, z1r, z1i, z2r
       -- exp(e2 - e1)), the difference held within ±700: on LuaJIT by min and max (a side exit
       -- here is a trace that cannot be compiled), on PUC Lua by branches (two calls of C
       -- functions cost more; the same number, NaN and -0 included)
-      local ex, ey = bx - x, by - y
-      local d = (dx * dx + dy * dy) / (2 * s) - (ex * ex + ey * ey) / (2 * s)
+      local ex, ey, s_2 = bx - x, by - y, 2 * s
+      local d = (dx * dx + dy * dy) / s_2 - (ex * ex + ey * ey) / s_2
       if JIT then
-        d = min(max(d, -700), 700)
-      elseif d < -700 then
-        d = -700
-      elseif d > 700 then
-        d = 700
+        d = min(max(d, LOW), HIGH)
+      elseif d < LOW then
+        d = LOW
+      elseif d > HIGH then
+        d = HIGH
       end
       local soft = log(1 + exp(d))
       l = l + -soft
       dr, di = z2r - qx, z2i - xy
       x2[j], y2[j], vx2[j], vy2[j] = x + g1 * ex, y + g1 * ey, vx + g2 * ex, vy + g2 * ey
-      local l2 = lw - half - (dr * dr + di * di) / (2 * S) + (d - soft)
+      local l2 = lw - half - (dr * dr + di * di) / S_2 + (d - soft)
       lw2[j] = l2
     end
     lw1[j] = l
@@ -142,226 +147,74 @@ local function branch(T, prev, dt, ax, ay, bx, by, has2, r2, half, z1r, z1i, z2r
   return j
 end
 
+-- One candidate's children: their weights relative to the greatest log-weight `top` (into
+-- `w`), and their order of weight, best first, into `run` (insertion, stable: the children
+-- come nearly in order, their parents kept best first, so a child is most often no heavier
+-- than the last placed, whose weight `low` holds; placed at the end then, it is compared once).
+-- (Written out, not a function per child: a call per child costs more than the sort.) Returns
+-- the weight of the children whose parents chose the previous frame's first candidate and of
+-- those whose parents chose its second, a new path's shared as the previous frame believed
+-- (`p_prev`, the first's probability).
+local function order(ns, top, lw, w, run, p_prev)
+  local sfrom = sfrom -- luacheck: ignore 431
+  local low = math.huge -- (no weight is above it: the first child goes first)
+  local one, two = 0, 0
+  for j = 1, ns do
+    local wj = exp(lw[j] - top)
+    w[j] = wj
+    if low < wj then
+      local r = j - 2
+      run[j] = run[j - 1]
+      while r >= 1 and w[run[r]] < wj do
+        run[r + 1] = run[r]
+        r = r - 1
+      end
+      run[r + 1] = j
+    else
+      run[j], low = j, wj
+    end
+    local from = sfrom[j]
+    if from == 1 then
+      one = one + wj
+    elseif from == 0 then
+      -- the new paths: their previous choice as the previous frame believed
+      one, two = one + wj * p_prev, two + wj * (1 - p_prev)
+    else
+      two = two + wj
+    end
+  end
+  return one, two
+end
+
 -- The children's weights (relative to the best), each candidate's children in order of
--- weight, best first, in `run1` and `run2` (insertions, stable: the children come nearly in
--- order, their parents kept best first; the runs' merge by weight is the order of all the
+-- weight, best first, in `run1` and `run2` (the runs' merge by weight is the order of all the
 -- children), and for smoothing the probability of the previous frame's first candidate given
 -- each of this frame's. Returns the runs' lengths and the two probabilities.
 local function weigh(ns, has2, p_prev)
-  -- luacheck: push ignore 431
-  local lw1, lw2, w1, w2, sfrom, run1, run2 = lw1, lw2, w1, w2, sfrom, run1, run2
-  -- luacheck: pop
+  local lw1, lw2 = lw1, lw2 -- luacheck: ignore 431
   local top = -math.huge
   for j = 1, ns do
     if lw1[j] > top then top = lw1[j] end
     if has2 and lw2[j] > top then top = lw2[j] end
   end
-  local j11, j12, j21, j22 = 0, 0, 0, 0
-  local n1, n2, wb = 0, 0, 0
-  for j = 1, ns do
-    -- (the insertions written out: a function call per child costs more than the sort)
-    local wa = exp(lw1[j] - top)
-    w1[j] = wa
-    local r = n1
-    while r >= 1 and w1[run1[r]] < wa do
-      run1[r + 1] = run1[r]
-      r = r - 1
-    end
-    run1[r + 1] = j
-    n1 = n1 + 1
-    if has2 then
-      wb = exp(lw2[j] - top)
-      w2[j] = wb
-      r = n2
-      while r >= 1 and w2[run2[r]] < wb do
-        run2[r + 1] = run2[r]
-        r = r - 1
-      end
-      run2[r + 1] = j
-      n2 = n2 + 1
-    end
-    local from = sfrom[j]
-    if from == 0 then
-      -- the new paths: their previous choice as the previous frame believed
-      j11, j21 = j11 + wa * p_prev, j21 + wa * (1 - p_prev)
-      if has2 then j12, j22 = j12 + wb * p_prev, j22 + wb * (1 - p_prev) end
-    elseif from == 1 then
-      j11 = j11 + wa
-      if has2 then j12 = j12 + wb end
-    else
-      j21 = j21 + wa
-      if has2 then j22 = j22 + wb end
-    end
+  local a, b, n2 = 0.5, 0.5, 0
+  local one, two = order(ns, top, lw1, w1, run1, p_prev)
+  if one + two > 0 then a = one / (one + two) end
+  if has2 then
+    one, two = order(ns, top, lw2, w2, run2, p_prev)
+    if one + two > 0 then b = one / (one + two) end
+    n2 = ns
   end
-  local a, b = 0.5, 0.5
-  if j11 + j21 > 0 then a = j11 / (j11 + j21) end
-  if j12 + j22 > 0 then b = j12 / (j12 + j22) end
-  return n1, n2, a, b
-end
-
--- Child j of candidate `pick` is merged into the first kept child of the same candidate that
--- coincides with it, or kept (as the m + 1-th, the c + 1-th of its candidate). Returns the
--- counts after it.
-local function consider(j, pick, m, c, limit, r2)
-  local w, x, y, vx, vy = w1, x1[j], y1[j], vx1[j], vy1[j]
-  local kx, ky, kvx, kvy, kr, ki = k1x, k1y, k1vx, k1vy, k1r, k1
-  if pick ~= 1 then
-    w, x, y, vx, vy = w2, x2[j], y2[j], vx2[j], vy2[j]
-    kx, ky, kvx, kvy, kr, ki = k2x, k2y, k2vx, k2vy, k2r, k2
-  end
-  for u = 1, c do
-    -- (the sum's terms are not negative: one alone as large as the radius rules the child
-    -- out, to the bit)
-    local dx, r = kx[u] - x, kr[u]
-    if dx * dx < r then
-      local dy, dvx, dvy = ky[u] - y, kvx[u] - vx, kvy[u] - vy
-      if dx * dx + dy * dy + 0.01 * (dvx * dvx + dvy * dvy) < r then
-        local into = ki[u]
-        w[into] = w[into] + w[j]
-        return m, c
-      end
-    end
-  end
-  m, c = m + 1, c + 1
-  kept[m] = pick == 1 and j or -j
-  ki[c], kx[c], ky[c], kvx[c], kvy[c], kr[c] = j, x, y, vx, vy, limit * (spp[j] + r2)
-  if not (w[j] > TINY) then w[j] = TINY end
-  return m, c
-end
-
--- The first pass of step 3, best first: the children of a weight that is not zero in doubles,
--- until `room` are kept (`consider` and the runs' merge written out, once per candidate: the
--- filter's innermost loop). Returns how many of each candidate are kept and the places in the
--- runs where it stopped (a child before them of a weight above `TINY` was considered).
-local function first_pass(room, limit, r2, n1, n2)
-  -- luacheck: push ignore 431
-  local w1, w2, run1, run2, kept, spp = w1, w2, run1, run2, kept, spp
-  local k1, k1x, k1y, k1vx, k1vy, k1r = k1, k1x, k1y, k1vx, k1vy, k1r
-  local k2, k2x, k2y, k2vx, k2vy, k2r = k2, k2x, k2y, k2vx, k2vy, k2r
-  -- luacheck: pop
-  local m, c1, c2, a, b = 0, 0, 0, 1, 1
-  while m < room do
-    local first
-    if a > n1 then
-      if b > n2 then break end
-      first = false
-    elseif b > n2 then
-      first = true
-    else
-      local ja, jb = run1[a], run2[b]
-      local wa, wb = w1[ja], w2[jb]
-      first = wa > wb or (wa == wb and ja <= jb)
-    end
-    if first then
-      local j = run1[a]
-      a = a + 1
-      local w = w1[j]
-      if w > TINY then
-        local x, y, vx, vy, into = x1[j], y1[j], vx1[j], vy1[j], nil
-        for u = 1, c1 do
-          local dx, r = k1x[u] - x, k1r[u]
-          if dx * dx < r then
-            local dy, dvx, dvy = k1y[u] - y, k1vx[u] - vx, k1vy[u] - vy
-            if dx * dx + dy * dy + 0.01 * (dvx * dvx + dvy * dvy) < r then
-              into = k1[u]
-              break
-            end
-          end
-        end
-        if into then
-          w1[into] = w1[into] + w
-        else
-          m, c1 = m + 1, c1 + 1
-          kept[m] = j
-          k1[c1], k1x[c1], k1y[c1], k1vx[c1], k1vy[c1], k1r[c1] = j, x, y, vx, vy,
-            limit * (spp[j] + r2)
-        end
-      end
-    else
-      local j = run2[b]
-      b = b + 1
-      local w = w2[j]
-      if w > TINY then
-        local x, y, vx, vy, into = x2[j], y2[j], vx2[j], vy2[j], nil
-        for u = 1, c2 do
-          local dx, r = k2x[u] - x, k2r[u]
-          if dx * dx < r then
-            local dy, dvx, dvy = k2y[u] - y, k2vx[u] - vx, k2vy[u] - vy
-            if dx * dx + dy * dy + 0.01 * (dvx * dvx + dvy * dvy) < r then
-              into = k2[u]
-              break
-            end
-          end
-        end
-        if into then
-          w2[into] = w2[into] + w
-        else
-          m, c2 = m + 1, c2 + 1
-          kept[m] = -j
-          k2[c2], k2x[c2], k2y[c2], k2vx[c2], k2vy[c2], k2r[c2] = j, x, y, vx, vy,
-            limit * (spp[j] + r2)
-        end
-      end
-    end
-  end
-  return c1, c2, a, b
-end
-
--- The next child in the order of all the children, from places a and b of the runs (of
--- lengths n1 and n2): its slot, its candidate and the places after it (nil when none is left).
-local function next_child(a, b, n1, n2)
-  if a > n1 then
-    if b > n2 then return nil end
-    return run2[b], 2, a, b + 1
-  end
-  local ja = run1[a]
-  if b > n2 then return ja, 1, a + 1, b end
-  local jb = run2[b]
-  local wa, wb = w1[ja], w2[jb]
-  if wa > wb or (wa == wb and ja <= jb) then return ja, 1, a + 1, b end
-  return jb, 2, a, b + 1
-end
-
--- Step 3: merge the children that coincide into the better, keep the best, leaving `RESERVE`
--- places to the best of the candidate the others did not choose. Returns how many are kept
--- (in `kept`).
-local function merge(T, r2, n1, n2)
-  local limit, hypotheses, reserve = T.MERGE * T.MERGE, T.HYPOTHESES, T.RESERVE
-  local c1, c2, stop1, stop2 = first_pass(hypotheses - reserve, limit, r2, n1, n2)
-  local m = c1 + c2
-  -- the second: the best of a candidate with fewer than `reserve` kept (the children of the
-  -- other then do not fit: a candidate's own run is its part of the order), of those the
-  -- first pass did not consider
-  if c1 >= reserve and c2 >= reserve then return m end
-  if c1 < reserve and c2 < reserve then
-    -- both: the order of all the children
-    local j, pick, a, b = next_child(1, 1, n1, n2)
-    while j and m < hypotheses do
-      if pick == 1 then
-        if c1 < reserve and not (a - 1 < stop1 and w1[j] > TINY) then
-          m, c1 = consider(j, 1, m, c1, limit, r2)
-        end
-      elseif c2 < reserve and not (b - 1 < stop2 and w2[j] > TINY) then
-        m, c2 = consider(j, 2, m, c2, limit, r2)
-      end
-      j, pick, a, b = next_child(a, b, n1, n2)
-    end
-    return m
-  end
-  local run, n, pick, c, stop, w = run1, n1, 1, c1, stop1, w1
-  if c1 >= reserve then run, n, pick, c, stop, w = run2, n2, 2, c2, stop2, w2 end
-  for r = 1, n do
-    if m >= hypotheses or c >= reserve then break end
-    local j = run[r]
-    if not (r < stop and w[j] > TINY) then m, c = consider(j, pick, m, c, limit, r2) end
-  end
-  return m
+  return ns, n2, a, b
 end
 
 -- Step 4: the kept children as the new state; returns the candidate to return and its
 -- posterior.
 local function emit(out, m, time, s2, a, b)
-  local kept, w1, w2 = kept, w1, w2 -- luacheck: ignore 431
+  -- luacheck: push ignore 431
+  local kept, w1, w2, spp, spv, svv = kept, w1, w2, spp, spv, svv
+  local x1, y1, vx1, vy1, x2, y2, vx2, vy2 = x1, y1, vx1, vy1, x2, y2, vx2, vy2
+  -- luacheck: pop
   local total, first = 0, 0
   for u = 1, m do
     local j = kept[u]
@@ -376,20 +229,22 @@ local function emit(out, m, time, s2, a, b)
   local p1 = first / total
   out.time, out.sigma2, out.first, out.back_first, out.back_second, out.count = time, s2, p1, a,
     b, m
-  local h = out.hypotheses
+  -- (o: the place of the hypothesis's first number, moved on a stride at a time)
+  local h, o = out.hypotheses, 1
   for u = 1, m do
-    local j, o = kept[u], (u - 1) * 9
+    local j = kept[u]
     if j > 0 then
-      h[o + 1], h[o + 2], h[o + 3], h[o + 4] = x1[j], y1[j], vx1[j], vy1[j]
-      h[o + 8], h[o + 9] = log(w1[j] / total), 1
+      h[o], h[o + 1], h[o + 2], h[o + 3] = x1[j], y1[j], vx1[j], vy1[j]
+      h[o + 7], h[o + 8] = log(w1[j] / total), 1
     else
       j = -j
-      h[o + 1], h[o + 2], h[o + 3], h[o + 4] = x2[j], y2[j], vx2[j], vy2[j]
-      h[o + 8], h[o + 9] = log(w2[j] / total), 2
+      h[o], h[o + 1], h[o + 2], h[o + 3] = x2[j], y2[j], vx2[j], vy2[j]
+      h[o + 7], h[o + 8] = log(w2[j] / total), 2
     end
-    h[o + 5], h[o + 6], h[o + 7] = spp[j], spv[j], svv[j]
+    h[o + 4], h[o + 5], h[o + 6] = spp[j], spv[j], svv[j]
+    o = o + 9
   end
-  for i = m * 9 + 1, #h do h[i] = nil end
+  for i = o, #h do h[i] = nil end
   if p1 >= 0.5 then return 1, p1 end
   return 2, 1 - p1
 end
