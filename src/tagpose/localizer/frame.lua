@@ -11,6 +11,14 @@
 -- rejected and the rest fitted again; so is a frame whose priors alone are past their gate (a
 -- lone phantom detection, a tag placed elsewhere than the map says, seen alone, puts the robot
 -- in the air or tilted).
+--
+-- That joint fit of every tag can be dragged by one gross outlier (a phantom detection: a
+-- random quad with a map id) until the real tags look worse than it and leave one by one. So
+-- when it loses a tag, fails, or the priors refuse it, a consensus is grown from each start in
+-- turn (best score first, those the priors refuse aside, a start whose tag an earlier
+-- consensus keeps skipped): the tags that agree with the start, fitted together, then each other
+-- tag kept when the fit with it adds no more than `LOO_GATE` to the χ². The solution the priors
+-- take beats one they refuse; then the one that keeps more tags wins, then the lower χ².
 -- @module tagpose.localizer.frame
 
 local fit = require("tagpose.localizer.fit")
@@ -157,11 +165,14 @@ local function consensus(obs, n, eligible, set, pr, pose, sigma, rejected)
     local order = {}
     for i = 1, n do
       if eligible[i] and not set[i] then
-        order[#order + 1] = { i = i, c = fit.tag_cost(obs[i], pose.r, pose.t[1], pose.t[2],
-          pose.t[3], sigma) }
+        local c = fit.tag_cost(obs[i], pose.r, pose.t[1], pose.t[2], pose.t[3], sigma)
+        order[#order + 1] = { i = i, c = c < huge and c or huge }
       end
     end
-    table.sort(order, function(a, b) return a.c < b.c end)
+    table.sort(order, function(a, b)
+      if a.c ~= b.c then return a.c < b.c end
+      return a.i < b.i
+    end)
     for _, o in ipairs(order) do
       set[o.i] = true
       local p = copy_pose(pose)
@@ -182,11 +193,13 @@ local function consensus(obs, n, eligible, set, pr, pose, sigma, rejected)
   return refine(obs, n, set, count, pr, pose, sigma, rejected)
 end
 
---- Solve one frame. Two ways from the best start: every tag fitted together, then the
--- disagreeing ones out; and the tags that agree with the start alone, then those that agree
--- with their fit (a phantom detection drags a joint fit until the real tags look worse than
--- it; a far tag's start can disagree with a near one that fits it well). The one that keeps
--- more tags wins, then the lower χ².
+--- Solve one frame: every tag fitted together from the best start, then the disagreeing ones
+-- out; when that loses a tag, fails or the priors refuse it, a consensus grown from each start
+-- (a phantom detection drags a joint fit until the real tags look worse than it; a far tag's
+-- start can disagree with a near one that fits it well). The one the priors take wins, then
+-- the one that keeps more tags, then the lower χ². `loo` is the winner's, with the joint fit's
+-- for the tags the winner left out before its own leave-one-out (a tag off its map place shows
+-- there).
 -- @tparam {table,...} obs observations (`tagpose.localizer.fit`), each also with `id` and
 --   `starts` (the robot poses its tag alone gives: one or two)
 -- @tparam int n how many
@@ -216,7 +229,10 @@ function M.solve(obs, n, pr, sigma, nuisance, start, distrust)
   local seeds = {}
   local function try(p, i)
     local s = score(obs, n, active, pr, p, sigma)
-    seeds[#seeds + 1] = { pose = p, score = s, prior = prior_chi2(pr, p), i = i or 0 }
+    if s < huge then
+      seeds[#seeds + 1] = { pose = p, score = s, prior = prior_chi2(pr, p), i = i or 0,
+        k = #seeds }
+    end
     if s < best_score then best, best_score = p, s end
   end
   if start then try(start) end
@@ -239,10 +255,14 @@ function M.solve(obs, n, pr, sigma, nuisance, start, distrust)
   local rejected = {}
   local chi2, nkept, loo = refine(obs, n, active, kept, pr, pose, sigma, rejected)
   -- the consensus, when the joint fit lost a tag, failed, or the priors refuse it: from each
-  -- start in order of score (one whose tag a consensus already keeps aside)
+  -- start in order of score (ties: the order tried), one the priors refuse or whose tag a
+  -- consensus already keeps aside
   local ok1 = chi2 and prior_chi2(pr, pose) <= M.PRIOR_GATE
   if not chi2 or nkept < kept or not ok1 then
-    table.sort(seeds, function(a, b) return a.score < b.score end)
+    table.sort(seeds, function(a, b)
+      if a.score ~= b.score then return a.score < b.score end
+      return a.k < b.k
+    end)
     local covered = {}
     for _, sd in ipairs(seeds) do
       if not covered[sd.i] and (sd.prior <= M.PRIOR_GATE or sd == seeds[1]) then
@@ -254,7 +274,11 @@ function M.solve(obs, n, pr, sigma, nuisance, start, distrust)
           end
           -- (a solution the priors refuse loses to one they take)
           local ok2 = prior_chi2(pr, p2) <= M.PRIOR_GATE
-          if not chi2 or (ok2 and not ok1) or (ok2 == ok1 and k2 > nkept) then
+          if not chi2 or (ok2 and not ok1) or (ok2 == ok1 and (k2 > nkept
+            or (k2 == nkept and c2 < chi2))) then
+            for id, v in pairs(loo or {}) do
+              if l2[id] == nil then l2[id] = v end
+            end
             chi2, nkept, loo, pose, rejected, active, ok1 = c2, k2, l2, p2, rej2, set, ok2
           end
           if ok1 and nkept == kept then break end
