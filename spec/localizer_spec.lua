@@ -6,9 +6,9 @@
 -- (0, 0) with a heading of 0.7 rad, never reset), a gyro reading the true heading plus 2.0 rad
 -- plus noise, at 50 Hz; each camera at 30 Hz (the back one half a period after the front).
 --
--- Cases marked KNOWN BUG check what the module's documentation promises and fail on the code as
--- it is: each calls `pending` with the measured figures while the bug is there (the condition
--- is the bug's own symptom), and becomes an ordinary test once it is fixed.
+-- The cases that were known bugs (the fused filter and the gyro's noise, a tag left out listed
+-- in `rejected`, a phantom detection's frame, the bias sums and the rollback) are ordinary tests:
+-- a regression fails, with the measured figures.
 
 local localizer = require("tagpose.localizer")
 local G = require("support.geometry")
@@ -482,20 +482,15 @@ describe("tagpose.localizer", function()
     end)
 
     it("fused, a gyro with noise gyro_sigma (the default 0.1°): covers 85-100 %, and is not 4 "
-      .. "times too large [KNOWN BUG: pending]", function()
-      -- The filter's update (filter.lua Filter:update, called from init.lua process_frame)
-      -- compares the frame's heading with gyro − c but leaves the gyro's noise (gyro_sigma) out
-      -- of the innovation's covariance: gyro noise is taken for heading information, moves x, y
-      -- through the frame's x-yaw correlation, and the covariance does not carry it
-      -- (gyro_sigma changes neither the estimate nor its planar covariance).
+      .. "times too large", function()
+      -- (was a bug: the filter's update compared the frame's heading with gyro − c but left the
+      -- gyro's noise, gyro_sigma, out of the innovation's covariance: gyro noise taken for
+      -- heading information moved x, y through the frame's x-yaw correlation, uncovered)
       local events = events_of("noisy gyro",
         { gyro_noise = localizer.DEFAULTS.gyro_sigma, duration = 5 })
       local errs = errors(run("noisy gyro", events, NOISE_ONLY), 1)
       local ok, figures = covers(errs)
       figures = ("%s; planar error median %.4f m"):format(figures, quantile(field(errs, "d"), 0.5))
-      if coverage(errs) < 0.85 then
-        pending("KNOWN BUG: the fused filter ignores the gyro's noise (gyro_sigma): " .. figures)
-      end
       assert.is_true(ok, figures)
     end)
   end)
@@ -534,11 +529,9 @@ describe("tagpose.localizer", function()
     end)
 
     it("a tag moved 0.3 m in the map is listed in `rejected` where it is seen with two others "
-      .. "or more [KNOWN BUG: pending]", function()
-      -- frame.solve returns its rejected tags inside its result ({..., rejected = {...}}) when it
-      -- succeeds, but process_frame (init.lua) reads a second return value (`sol, rej =
-      -- frame.solve(...)`), which is nil then: a tag the fit left out is silently dropped,
-      -- listed neither in `tags` nor in `rejected`.
+      .. "or more", function()
+      -- (was a bug: process_frame read the rejected tags as solve's second return value, nil
+      -- when it succeeds: a tag the fit left out was listed neither in `tags` nor `rejected`)
       local crowded, listed, dropped = 0, 0, 0
       for _, f in ipairs(moved_run()) do
         local dets, r = f.event.detections, f.result
@@ -551,8 +544,6 @@ describe("tagpose.localizer", function()
       local figures = ("seed %d: tag %d seen with two others or more in %d frames: listed in "
         .. "`rejected` in %d, in neither `tags` nor `rejected` in %d"):format(SEED, MOVED,
         crowded, listed, dropped)
-      if dropped > 0 then pending("KNOWN BUG: a tag the frame's fit left out is dropped: "
-        .. figures) end
       assert.equal(crowded, listed, figures)
     end)
 
@@ -604,20 +595,18 @@ describe("tagpose.localizer", function()
       assert.is_true(p.worst <= 0.05, p.figures)
     end)
 
-    it("a phantom detection does not cost its frame the real tags beside it "
-      .. "[KNOWN BUG: pending]", function()
-      -- frame.solve fits every tag jointly before it tests any: a gross outlier drags the fit
-      -- until the real tags are the worst, they are taken out one by one, and the phantom left
-      -- alone fails the priors (the frame gives nothing) or, in single mode, is the answer.
+    it("a phantom detection does not cost its frame the real tags beside it", function()
+      -- (was a bug: frame.solve fitted every tag jointly before it tested any: a gross outlier
+      -- dragged the fit until the real tags were the worst, they were taken out one by one, and
+      -- the phantom left alone failed the priors or, in single mode, was the answer; now a
+      -- consensus grown from each tag's start is tried when the joint fit loses a tag)
       local p = phantom_runs("fused", 3)
-      if p.lost + p.changed > 0 then pending("KNOWN BUG: " .. p.figures) end
       assert.equal(0, p.lost + p.changed, p.figures)
     end)
 
-    it("single mode: a phantom detection neither costs its frame nor moves the answer by 5 cm "
-      .. "[KNOWN BUG: pending]", function()
+    it("single mode: a phantom detection neither costs its frame nor moves the answer by 5 cm",
+      function()
       local p = phantom_runs("single", 2)
-      if p.lost + p.changed > 0 or p.worst > 0.05 then pending("KNOWN BUG: " .. p.figures) end
       assert.is_true(p.worst <= 0.05, p.figures)
       assert.equal(0, p.lost + p.changed, p.figures)
     end)
@@ -712,19 +701,15 @@ describe("tagpose.localizer", function()
     end)
 
     it("the back camera 50 ms late, default options: its covariances are those of the run in "
-      .. "time order [KNOWN BUG: pending]", function()
-      -- init.lua process_frame updates the mounts' and map's bias sums in place (`local b =
-      -- s.bias or {...}; b[1] = ...`) while copy_state copies the state shallowly: the snapshot
-      -- a late event rolls back to shares the table, so a replay adds the frames again.
+      .. "time order", function()
+      -- (was a bug: the mounts' and map's bias sums were updated in place while the state was
+      -- copied shallowly: the snapshot a late event rolls back to shared the table, and a
+      -- replay added the frames again)
       local cut = cut_run("main", events_of("main", { seed = SEED }), nil)
       local c = compare_late(cut[3], main_run(), cut[2], { history = 1 })
       assert.is_true(c.count > 140)
       assert.same({}, c.pose) -- the estimate itself is replayed right
-      if #c.covariance > 0 then
-        pending(("KNOWN BUG: the bias sums are shared with the rollback snapshots: %d of %d late "
-          .. "frames' covariances differ, first %s"):format(#c.covariance, c.count,
-          c.covariance[1]))
-      end
+      assert.same({}, c.covariance)
       assert.is_nil(c.final)
     end)
   end)

@@ -11,6 +11,14 @@
 -- rejected and the rest fitted again; so is a frame whose priors alone are past their gate (a
 -- lone phantom detection, a tag placed elsewhere than the map says, seen alone, puts the robot
 -- in the air or tilted).
+--
+-- That joint fit of every tag can be dragged by one gross outlier (a phantom detection: a
+-- random quad with a map id) until the real tags look worse than it and leave one by one. So
+-- when it loses a tag, fails, or the priors refuse it, a consensus is grown from each start in
+-- turn (best score first, those the priors refuse aside, a start whose tag an earlier
+-- consensus keeps skipped): the tags that agree with the start, fitted together, then each other
+-- tag kept when the fit with it adds no more than `LOO_GATE` to the χ². The solution the priors
+-- take beats one they refuse; then the one that keeps more tags wins, then the lower χ².
 -- @module tagpose.localizer.frame
 
 local fit = require("tagpose.localizer.fit")
@@ -136,11 +144,62 @@ local function refine(obs, n, active, kept, pr, pose, sigma, rejected)
   return chi2, kept, loo
 end
 
---- Solve one frame. Two ways from the best start: every tag fitted together, then the
--- disagreeing ones out; and the tags that agree with the start alone, then those that agree
--- with their fit (a phantom detection drags a joint fit until the real tags look worse than
--- it; a far tag's start can disagree with a near one that fits it well). The one that keeps
--- more tags wins, then the lower χ².
+-- From a start: the tags that agree with it (χ² under `CAP`) fitted together, then each other
+-- tag, the one the fit puts nearest first, kept when it adds at most `LOO_GATE` to the fit's χ²
+-- (a far tag's own pose is too loose to agree with a near tag's start, a phantom adds
+-- thousands), then `refine`. `set` is filled with the tags kept, `rejected` with the others.
+-- Returns as `refine`, or nil.
+local function consensus(obs, n, eligible, set, pr, pose, sigma, rejected)
+  local count = 0
+  for i = 1, n do
+    set[i] = eligible[i] and fit.tag_cost(obs[i], pose.r, pose.t[1], pose.t[2], pose.t[3],
+      sigma) < M.CAP
+    if set[i] then count = count + 1 end
+  end
+  if count == 0 then return nil end
+  local c0 = fit.fit(obs, n, set, pr, pose, sigma)
+  if not (c0 < huge) then return nil end
+  local more = true
+  while more do
+    more = false
+    local order = {}
+    for i = 1, n do
+      if eligible[i] and not set[i] then
+        local c = fit.tag_cost(obs[i], pose.r, pose.t[1], pose.t[2], pose.t[3], sigma)
+        order[#order + 1] = { i = i, c = c < huge and c or huge }
+      end
+    end
+    table.sort(order, function(a, b)
+      if a.c ~= b.c then return a.c < b.c end
+      return a.i < b.i
+    end)
+    for _, o in ipairs(order) do
+      set[o.i] = true
+      local p = copy_pose(pose)
+      local c = fit.fit(obs, n, set, pr, p, sigma)
+      if c < huge and c - c0 <= M.LOO_GATE then
+        pose.r, pose.t, c0, count, more = p.r, p.t, c, count + 1, true
+      else
+        set[o.i] = false
+      end
+    end
+  end
+  for i = 1, n do
+    if eligible[i] and not set[i] then
+      rejected[#rejected + 1] = { id = obs[i].id, chi2 = fit.tag_cost(obs[i], pose.r,
+        pose.t[1], pose.t[2], pose.t[3], sigma), i = i }
+    end
+  end
+  return refine(obs, n, set, count, pr, pose, sigma, rejected)
+end
+
+--- Solve one frame: every tag fitted together from the best start, then the disagreeing ones
+-- out; when that loses a tag, fails or the priors refuse it, a consensus grown from each start
+-- (a phantom detection drags a joint fit until the real tags look worse than it; a far tag's
+-- start can disagree with a near one that fits it well). The one the priors take wins, then
+-- the one that keeps more tags, then the lower χ². `loo` is the winner's, with the joint fit's
+-- for the tags the winner left out before its own leave-one-out (a tag off its map place shows
+-- there).
 -- @tparam {table,...} obs observations (`tagpose.localizer.fit`), each also with `id` and
 --   `starts` (the robot poses its tag alone gives: one or two)
 -- @tparam int n how many
@@ -167,8 +226,13 @@ function M.solve(obs, n, pr, sigma, nuisance, start, distrust)
   end
   if kept == 0 then return nil, fixed end
   local best, best_score = nil, huge
-  local function try(p)
+  local seeds = {}
+  local function try(p, i)
     local s = score(obs, n, active, pr, p, sigma)
+    if s < huge then
+      seeds[#seeds + 1] = { pose = p, score = s, prior = prior_chi2(pr, p), i = i or 0,
+        k = #seeds }
+    end
     if s < best_score then best, best_score = p, s end
   end
   if start then try(start) end
@@ -180,7 +244,7 @@ function M.solve(obs, n, pr, sigma, nuisance, start, distrust)
       alone[i] = true
       for _, p0 in ipairs(obs[i].starts) do
         local p = copy_pose(p0)
-        if fit.fit(obs, n, alone, pr, p, sigma, START_ITERATIONS) < huge then try(p) end
+        if fit.fit(obs, n, alone, pr, p, sigma, START_ITERATIONS) < huge then try(p, i) end
       end
       alone[i] = nil
     end
@@ -190,42 +254,36 @@ function M.solve(obs, n, pr, sigma, nuisance, start, distrust)
   local pose = copy_pose(best)
   local rejected = {}
   local chi2, nkept, loo = refine(obs, n, active, kept, pr, pose, sigma, rejected)
-  -- the tags that agree with the start
-  local agree, count = {}, 0
-  for i = 1, n do
-    agree[i] = eligible[i] and fit.tag_cost(obs[i], best.r, best.t[1], best.t[2], best.t[3],
-      sigma) < M.CAP
-    if agree[i] then count = count + 1 end
-  end
-  if count > 0 and count < kept and (not chi2 or nkept < count) then
-    local p2 = copy_pose(best)
-    local rej2 = {}
-    for i = 1, n do
-      if eligible[i] and not agree[i] then
-        rej2[#rej2 + 1] = { id = obs[i].id, chi2 = fit.tag_cost(obs[i], best.r, best.t[1],
-          best.t[2], best.t[3], sigma), i = i }
-      end
-    end
-    -- (grown: the tags that agree, within `CAP`, with the fit of those that agree)
-    for _ = 1, n do
-      if not (fit.fit(obs, n, agree, pr, p2, sigma) < huge) then break end
-      local more = false
-      for k = #rej2, 1, -1 do
-        local i = rej2[k].i
-        if fit.tag_cost(obs[i], p2.r, p2.t[1], p2.t[2], p2.t[3], sigma) < M.CAP then
-          agree[i], count, more = true, count + 1, true
-          table.remove(rej2, k)
+  -- the consensus, when the joint fit lost a tag, failed, or the priors refuse it: from each
+  -- start in order of score (ties: the order tried), one the priors refuse or whose tag a
+  -- consensus already keeps aside
+  local ok1 = chi2 and prior_chi2(pr, pose) <= M.PRIOR_GATE
+  if not chi2 or nkept < kept or not ok1 then
+    table.sort(seeds, function(a, b)
+      if a.score ~= b.score then return a.score < b.score end
+      return a.k < b.k
+    end)
+    local covered = {}
+    for _, sd in ipairs(seeds) do
+      if not covered[sd.i] and (sd.prior <= M.PRIOR_GATE or sd == seeds[1]) then
+        local p2, rej2, set = copy_pose(sd.pose), {}, {}
+        local c2, k2, l2 = consensus(obs, n, eligible, set, pr, p2, sigma, rej2)
+        if c2 then
+          for i = 1, n do
+            if set[i] then covered[i] = true end
+          end
+          -- (a solution the priors refuse loses to one they take)
+          local ok2 = prior_chi2(pr, p2) <= M.PRIOR_GATE
+          if not chi2 or (ok2 and not ok1) or (ok2 == ok1 and (k2 > nkept
+            or (k2 == nkept and c2 < chi2))) then
+            for id, v in pairs(loo or {}) do
+              if l2[id] == nil then l2[id] = v end
+            end
+            chi2, nkept, loo, pose, rejected, active, ok1 = c2, k2, l2, p2, rej2, set, ok2
+          end
+          if ok1 and nkept == kept then break end
         end
       end
-      if not more then break end
-    end
-    local c2, k2, l2 = refine(obs, n, agree, count, pr, p2, sigma, rej2)
-    -- (a solution the priors refuse loses to one they take)
-    local ok1 = chi2 and prior_chi2(pr, pose) <= M.PRIOR_GATE
-    local ok2 = c2 and prior_chi2(pr, p2) <= M.PRIOR_GATE
-    if c2 and (not chi2 or (ok2 and not ok1) or (ok2 == ok1 and (k2 > nkept
-      or (k2 == nkept and c2 < chi2)))) then
-      chi2, nkept, loo, pose, rejected, active = c2, k2, l2, p2, rej2, agree
     end
   end
   if not chi2 then return nil, fixed end
