@@ -28,7 +28,8 @@ for k = 1, math.min(3, #rows) do
     :format(r.id, r.dx, r.dy, r.dz, r.d, r.n))
 end
 local moved = meta.moved_tag
-if not moved then return end
+-- (a log that moved no tag says `"moved_tag": null`)
+if not moved or moved == json.NULL then return end
 local t, p = moved["true"], moved.published
 local mx, my, mz = t[1] - p[1], t[2] - p[2], t[3] - p[3]
 local first = rows[1]
