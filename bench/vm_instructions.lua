@@ -64,4 +64,4 @@ for k, v in pairs(counts) do
 end
 table.sort(list, function(a, b) return a[2] > b[2] or (a[2] == b[2] and a[1] < b[1]) end)
 print(("%s, %d rows of %s: %.1f VM instructions a row"):format(mode, n, dir, total / n))
-for i = 1, math.min(25, #list) do print(("%8.1f %s"):format(list[i][2] / n, list[i][1])) end
+for i = 1, math.min(tonumber(os.getenv("TOP") or 25), #list) do print(("%8.1f %s"):format(list[i][2] / n, list[i][1])) end
