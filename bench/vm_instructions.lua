@@ -2,9 +2,9 @@
 -- machine instructions do (each instruction is a dispatch, an indirect jump the processor
 -- predicts poorly once other code has run between two solves). The first N rows of a data set
 -- run once to warm up, then once more counted by a debug hook called at every instruction;
--- prints the total a row and the 25 functions that run the most. The count is exact and the
--- same on every run and machine (on LuaJIT it counts the interpreter's instructions only, not
--- compiled code: use PUC Lua).
+-- prints the total a row and the 25 functions that run the most (TOP in the environment:
+-- more). The count is exact and the same on every run and machine (on LuaJIT it counts the
+-- interpreter's instructions only, not compiled code: use PUC Lua).
 --
 --   lua5.4 bench/vm_instructions.lua plain|read|tracker [DATASET_DIR] [N]
 --
@@ -64,4 +64,5 @@ for k, v in pairs(counts) do
 end
 table.sort(list, function(a, b) return a[2] > b[2] or (a[2] == b[2] and a[1] < b[1]) end)
 print(("%s, %d rows of %s: %.1f VM instructions a row"):format(mode, n, dir, total / n))
-for i = 1, math.min(tonumber(os.getenv("TOP") or 25), #list) do print(("%8.1f %s"):format(list[i][2] / n, list[i][1])) end
+local top = tonumber(os.getenv("TOP") or 25) -- (TOP=80 lua5.4 bench/vm_instructions.lua ...)
+for i = 1, math.min(top, #list) do print(("%8.1f %s"):format(list[i][2] / n, list[i][1])) end
