@@ -180,6 +180,41 @@ describe("tagpose-localize", function()
       assert.equal(0, status, text)
     end)
 
+  it("takes the mounts' and the map's sigmas with their units: the defaults given change no "
+    .. "byte, 0 narrows the rows, a bare number is refused", function()
+    localized()
+    local same, zero = dir .. "/same.csv", dir .. "/zero.csv"
+    local function with(out, p, a, m)
+      local args = { base(out) }
+      for _, v in ipairs({ "--mount-position-sigma", p, "--mount-angle-sigma", a, "--map-sigma",
+        m }) do
+        args[#args + 1] = v
+      end
+      local text, status = localize(unpack(args))
+      assert.equal(0, status, text)
+    end
+    with(same, "10mm", "0.5deg", "0.01m")
+    assert.equal(run.read(poses), run.read(same))
+    with(zero, "0", "0rad", "0")
+    local a, b = rows(poses), rows(zero)
+    assert.equal(#a, #b)
+    local narrower = 0
+    for i = 1, #a do
+      local sa, sb = tonumber(a[i].sx) ^ 2 + tonumber(a[i].sy) ^ 2,
+        tonumber(b[i].sx) ^ 2 + tonumber(b[i].sy) ^ 2
+      if sb < 0.9 * sa then narrower = narrower + 1 end
+    end
+    -- (the sigmas also weigh the frames in the filter, so a row may widen; most narrow)
+    assert.is_true(narrower > 0.8 * #a, narrower .. " of " .. #a .. " rows narrower")
+    local out = dir .. "/none_sigma.csv"
+    local args = { base(out) }
+    args[#args + 1], args[#args + 2] = "--mount-angle-sigma", "0.5"
+    args.out = out
+    refused(args, "%-%-mount%-angle%-sigma: an angle with its unit", 2)
+    args[#args - 1], args[#args] = "--map-sigma", "10"
+    refused(args, "%-%-map%-sigma: a length with its unit", 2)
+  end)
+
   it("refuses an output that is an input (status 2)", function()
     local text, status = localize(inputs["corners.csv"], "--map", inputs["map.json"],
       "--cameras", inputs["cameras.lua"], "--out", inputs["map.json"])

@@ -10,8 +10,9 @@
 --
 -- Its options are a table (`spec.options`), one entry an option: `name` (`"--fps"`), `kind`
 -- (what its value is, read by `KINDS`: `flag`, `string`, `choice`, `number`, `integer`,
--- `size`, `sizes`, `time`, `list`), `meta` (the value's name in the help), `default` (set
--- when the option is not given; `default_text` says it in the help when it is not a value),
+-- `size`, `sizes`, `time`, `length`, `angle`, `list`), `meta` (the value's name in the help),
+-- `default` (set when the option is not given; `default_text` says it in the help when it is
+-- not a value),
 -- `help` (one sentence or more), `key` (the field it sets, default the name's words joined
 -- by `_`), `check(value, unit)` (what is wrong with a value read, as `... expected`), `set`
 -- (fields set with it), and per kind `choices`, `min`, `max`, `count`, `what`, `bare`.
@@ -191,6 +192,25 @@ function KINDS.time(o, v, bad)
     bad("a time with its unit (0.5s, 500ms)", compat.decimal(v) and o.bare or nil)
   end
   return unit == "ms" and x / 1000 or x
+end
+
+-- A standard deviation with its unit (`units`: their factors), or 0: no bare number, so that
+-- millimetres are never read as metres nor degrees as radians.
+local function spread(v, units, what, bad)
+  local num, unit = v:match("^%s*(.-)%s*(%a*)%s*$")
+  local x = num and compat.decimal(num)
+  if x == 0 and (unit == "" or units[unit]) then return 0 end
+  if not (x and x > 0 and x < huge and units[unit]) then bad(what .. ", or 0") end
+  return x * units[unit]
+end
+local ANGLES = { deg = math.pi / 180, rad = 1 }
+
+-- a length with its unit, in metres; an angle with its unit (deg, rad), in radians
+function KINDS.length(_, v, bad)
+  return spread(v, M.UNITS, "a length with its unit (" .. UNIT_NAMES .. ")", bad)
+end
+function KINDS.angle(_, v, bad)
+  return spread(v, ANGLES, "an angle with its unit (0.5deg, 0.0087rad)", bad)
 end
 
 -- the option's field in the table `parse` returns

@@ -2,8 +2,9 @@
 -- `tagpose.localizer` and write where the robot was at every camera frame.
 --
 --   tagpose-localize CORNERS.csv --map MAP --cameras CAMERAS.lua [--odometry ODOMETRY.csv]
---     [--gyro GYRO.csv] [--single] [--tag-size S[UNIT]] [--map-check CHECK.csv]
---     [--svg PLOT.svg] --out POSES.csv
+--     [--gyro GYRO.csv] [--single] [--tag-size S[UNIT]] [--mount-position-sigma S]
+--     [--mount-angle-sigma A] [--map-sigma S] [--map-check CHECK.csv] [--svg PLOT.svg]
+--     --out POSES.csv
 --
 -- CORNERS.csv  time,camera,tag,u1,v1,u2,v2,u3,v3,u4,v4 (rows of one time and camera are one
 --              frame; corners in the detector's order, pixels; times in seconds)
@@ -17,6 +18,9 @@
 -- --max-gap    the longest gap allowed between two odometry or two gyro rows (default 1 s)
 -- --single     each frame that saw a map tag alone, with the gyro and the floor as priors
 --              (no odometry; the gyro's offset learnt from the frames before it)
+-- --mount-position-sigma, --mount-angle-sigma, --map-sigma  how far the mounts and the map's
+--              tags may be from where the files put them (the localizer's options of those
+--              names: 1cm, 0.5deg, 1cm by default), each with its unit, or 0 when known exactly
 -- --map-check  where each map tag was seen against where the map puts it (the localizer's
 --              `map_check`): tag,dx,dy,dz,distance,frames (field frame, m), largest first
 -- --svg        the field from above (`tagpose.tools.localize_plot`): the map's tags, the
@@ -50,7 +54,8 @@ local decimal = compat.decimal
 
 local USAGE = "usage: tagpose-localize CORNERS.csv --map MAP --cameras CAMERAS.lua\n"
   .. "  [--odometry ODOMETRY.csv] [--gyro GYRO.csv] [--single] [--tag-size S[UNIT]]\n"
-  .. "  [--max-gap S] [--map-check CHECK.csv] [--svg PLOT.svg] --out POSES.csv\n"
+  .. "  [--max-gap S] [--mount-position-sigma S] [--mount-angle-sigma A] [--map-sigma S]\n"
+  .. "  [--map-check CHECK.csv] [--svg PLOT.svg] --out POSES.csv\n"
 
 local SPEC = {
   about = "Replay a robot's log (corners of several cameras, odometry, gyro) through"
@@ -77,6 +82,13 @@ local SPEC = {
     { name = "--tag-size", kind = "size", meta = "S[UNIT]", default_text = "CAMERAS.lua's"
       .. " tag_size", help = "the side of the map's tags, with an optional unit (m, cm, mm,"
       .. " in, ft; without one, metres)" },
+    { name = "--mount-position-sigma", kind = "length", meta = "S", default_text = "1cm",
+      help = "how far each camera's mount may be from where CAMERAS.lua puts it, a length with"
+      .. " its unit (0 for mounts known exactly)" },
+    { name = "--mount-angle-sigma", kind = "angle", meta = "A", default_text = "0.5deg",
+      help = "how far each mount may be turned, an angle with its unit (deg, rad; 0 for none)" },
+    { name = "--map-sigma", kind = "length", meta = "S", default_text = "1cm", help = "how far"
+      .. " each tag may be from where the map puts it, a length with its unit (0 for none)" },
     { name = "--map-check", kind = "string", meta = "CHECK.csv", help = "write where each map"
       .. " tag was seen against where the map puts it" },
     { name = "--svg", kind = "string", meta = "PLOT.svg", help = "draw the field from above:"
@@ -245,7 +257,9 @@ local function run(argv, open)
   local map, merr = tagpose.layout.read(opt.map, size and { size = size } or nil)
   if not map then fail(merr) end
   local ok, loc = pcall(tagpose.localizer.new, map, cameras,
-    { mode = opt.single and "single" or "fused", map_check = opt.map_check ~= nil })
+    { mode = opt.single and "single" or "fused", map_check = opt.map_check ~= nil,
+      mount_position_sigma = opt.mount_position_sigma, mount_angle_sigma = opt.mount_angle_sigma,
+      map_sigma = opt.map_sigma })
   if not ok then fail(opt.cameras .. ": " .. tostring(loc):gsub("^bad argument #%d to 'new' %(",
     ""):gsub("%)$", "")) end
   local frames = read_frames(opt.corners, loc.cameras)
