@@ -82,31 +82,31 @@ local both, logdets = {}, {} -- the two candidates' normal equations, and their 
 
 -- The tilt of a pose: the component a of the tag's normal n across the line of sight l to its
 -- centre, as sin θ = |a| and a itself, with n·l and |t|.
-local function tilt(r, tx, ty, tz)
+local function tilt(n1, n2, n3, tx, ty, tz)
   local nt = sqrt(tx * tx + ty * ty + tz * tz)
   local l1, l2, l3 = tx / nt, ty / nt, tz / nt
-  local n1, n2, n3 = r[3], r[6], r[9]
   local nl = n1 * l1 + n2 * l2 + n3 * l3
   local a1, a2, a3 = n1 - nl * l1, n2 - nl * l2, n3 - nl * l3
   return sqrt(a1 * a1 + a2 * a2 + a3 * a3), a1, a2, a3, nl, nt
 end
+M.tilt = tilt
 
 -- The separation, in its own marginal standard deviations squared, of candidate c (its
--- rotation r, its tilt s, a, n·l, |t|) from the other's tilt (b) along c's tilt direction
+-- normal n, its tilt s, a, n·l, |t|) from the other's tilt (b) along c's tilt direction
 -- p = a / s; F the factors of c's H, sigma2 σ². The tilt coordinate x = a·p moves with a pose
 -- step (δω, δt) by (n × p)·δω - (n·l) p·δt / |t|, whose variance is σ² qᵀ H⁻¹ q for that q.
 -- 0 when the other is not across. (Branch-free: the caller tests once, so that few values are
 -- live where it branches.)
-local function separation(r, F, sigma2, s, a1, a2, a3, nl, nt, b1, b2, b3)
+local function separation(n1, n2, n3, F, sigma2, s, a1, a2, a3, nl, nt, b1, b2, b3)
   local p1, p2, p3 = a1 / s, a2 / s, a3 / s
   local sep = s - (b1 * p1 + b2 * p2 + b3 * p3)
-  local n1, n2, n3 = r[3], r[6], r[9]
   local k = -nl / nt
   local var = sigma2 * variance(F, n2 * p3 - n3 * p2, n3 * p1 - n1 * p3, n1 * p2 - n2 * p1,
     k * p1, k * p2, k * p3)
   local m = max(sep, 0)
   return m * m / max(var, 1e-300)
 end
+M.separation = separation
 
 -- The basins' part of the log-odds and the chord factors from the two separations (behind
 -- the guard of `tilted`: on LuaJIT, a side trace from that guard with all of this in it could
@@ -121,10 +121,11 @@ end
 -- The tilt-plane part of the log-odds and the chord factors, when both candidates are off
 -- face-on and across each other's tilt; else 0, 0, 0.
 local function tilted(a, b, Fa, Fb, sigma2, dc)
-  local sa, a1, a2, a3, anl, ant = tilt(a.r, a.tx, a.ty, a.tz)
-  local sb, b1, b2, b3, bnl, bnt = tilt(b.r, b.tx, b.ty, b.tz)
-  local d2a = separation(a.r, Fa, sigma2, sa, a1, a2, a3, anl, ant, b1, b2, b3)
-  local d2b = separation(b.r, Fb, sigma2, sb, b1, b2, b3, bnl, bnt, a1, a2, a3)
+  local ra, rb = a.r, b.r
+  local sa, a1, a2, a3, anl, ant = tilt(ra[3], ra[6], ra[9], a.tx, a.ty, a.tz)
+  local sb, b1, b2, b3, bnl, bnt = tilt(rb[3], rb[6], rb[9], b.tx, b.ty, b.tz)
+  local d2a = separation(ra[3], ra[6], ra[9], Fa, sigma2, sa, a1, a2, a3, anl, ant, b1, b2, b3)
+  local d2b = separation(rb[3], rb[6], rb[9], Fb, sigma2, sb, b1, b2, b3, bnl, bnt, a1, a2, a3)
   if not (sa > FACE_ON and sb > FACE_ON and d2a > 0 and d2b > 0 and d2a < huge
     and d2b < huge) then
     return 0, 0, 0

@@ -21,13 +21,13 @@
 
 local compat = require("tagpose.core.compat")
 local uncertainty = require("tagpose.uncertainty")
-local matrix = require("tagpose.uncertainty.matrix")
 local model = require("tagpose.uncertainty.model")
 
-local sqrt, log, max, huge = math.sqrt, math.log, math.max, math.huge
+local sqrt, log, huge = math.sqrt, math.log, math.huge
 local atan2 = compat.atan2
-local lookup, variance, noise, probability = model.lookup, matrix.variance, uncertainty.noise,
-  uncertainty.probability
+local lookup, noise, probability = model.lookup, uncertainty.noise, uncertainty.probability
+-- (a candidate's tilt, and its separation from the other's, are `tagpose.uncertainty`'s)
+local tilt, separation = uncertainty.tilt, uncertainty.separation
 
 local M = {}
 
@@ -100,28 +100,6 @@ end
 -- function such as log takes every register, so that every number live across it is spilled.)
 local function logdet(T)
   return log(T[1] * T[12] * T[21]) + log(T[28] * T[33] * T[36])
-end
-
--- The separation² of a candidate (its normal n, tilt s, a, n·l, |t|; F its factors) from the
--- other's tilt b along its own, in its marginal variances (`tagpose.uncertainty`'s).
-local function separation(n1, n2, n3, F, sigma2, s, a1, a2, a3, nl, nt, b1, b2, b3)
-  local p1, p2, p3 = a1 / s, a2 / s, a3 / s
-  local sep = s - (b1 * p1 + b2 * p2 + b3 * p3)
-  local k = -nl / nt
-  local var = sigma2 * variance(F, n2 * p3 - n3 * p2, n3 * p1 - n1 * p3, n1 * p2 - n2 * p1,
-    k * p1, k * p2, k * p3)
-  local m = max(sep, 0)
-  return m * m / max(var, 1e-300)
-end
-
--- The tilt of a pose (its normal n and centre t): the component a of n across the line of
--- sight l to the centre, as sin θ = |a| and a itself, with n·l and |t| (`tagpose.uncertainty`'s).
-local function tilt(n1, n2, n3, tx, ty, tz)
-  local nt = sqrt(tx * tx + ty * ty + tz * tz)
-  local l1, l2, l3 = tx / nt, ty / nt, tz / nt
-  local nl = n1 * l1 + n2 * l2 + n3 * l3
-  local a1, a2, a3 = n1 - nl * l1, n2 - nl * l2, n3 - nl * l3
-  return sqrt(a1 * a1 + a2 * a2 + a3 * a3), a1, a2, a3, nl, nt
 end
 
 -- The chord from the pose to the other, qb qa⁻¹ and tb - ta (`tagpose.uncertainty.chord`), into
