@@ -311,4 +311,21 @@ function M.cayley(d1, d2, d3)
     p13 - n * w2, p23 + n * w1, 1 + n * (w3 * w3 - ww)
 end
 
+--- A flat 3×3 rotation turned on the left by a step δω: `Q ← C(δω)·P` (`cayley`), Q's first
+-- nine numbers (Q may not be P).
+-- @tparam number d1 δω
+-- @tparam number d2
+-- @tparam number d3
+-- @tparam {number,...} P the rotation, row-major
+-- @tparam {number,...} Q filled
+function M.turn(d1, d2, d3, P, Q)
+  local c11, c12, c13, c21, c22, c23, c31, c32, c33 = M.cayley(d1, d2, d3)
+  for j = 1, 3 do
+    local a, b, c = P[j], P[3 + j], P[6 + j]
+    Q[j] = c11 * a + c12 * b + c13 * c
+    Q[3 + j] = c21 * a + c22 * b + c23 * c
+    Q[6 + j] = c31 * a + c32 * b + c33 * c
+  end
+end
+
 return M

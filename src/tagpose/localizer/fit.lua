@@ -30,7 +30,7 @@ local compat = require("tagpose.core.compat")
 local huge, pi = math.huge, math.pi
 local SQRT3 = math.sqrt(3)
 local atan2 = compat.atan2
-local damped_step, cayley = lsq.damped_step, lsq.cayley
+local damped_step, turn = lsq.damped_step, lsq.turn
 local multiply = rotation.multiply
 
 local M = {}
@@ -284,13 +284,7 @@ function M.fit(obs, n, active, pr, pose, sigma, iterations)
   for _ = 1, iterations or M.MAX_ITERATIONS do
     local lam, disp, d1, d2, d3, d4, d5, d6 = damped_step(N, lambda)
     if not lam then break end
-    local c11, c12, c13, c21, c22, c23, c31, c32, c33 = cayley(d1, d2, d3)
-    for j = 1, 3 do
-      local a, b, e = r[j], r[3 + j], r[6 + j]
-      trial[j] = c11 * a + c12 * b + c13 * e
-      trial[3 + j] = c21 * a + c22 * b + c23 * e
-      trial[6 + j] = c31 * a + c32 * b + c33 * e
-    end
+    turn(d1, d2, d3, r, trial)
     local nx, ny, nz = t[1] + d4, t[2] + d5, t[3] + d6
     local c2 = cost(obs, n, active, pr, trial, nx, ny, nz, sigma)
     if c2 <= c then

@@ -24,7 +24,7 @@
 local lsq = require("tagpose.core.lsq")
 
 local huge = math.huge
-local damped_step, cayley, residual = lsq.damped_step, lsq.cayley, lsq.residual
+local damped_step, turn, residual = lsq.damped_step, lsq.turn, lsq.residual
 
 local M = {}
 
@@ -123,20 +123,14 @@ local function linearise(N, C, pr, Q, points, px, n)
   return s
 end
 
--- The damped step from the pose P (`lsq.damped_step`, `lsq.cayley`): writes the trial pose
+-- The damped step from the pose P (`lsq.damped_step`, `lsq.turn`): writes the trial pose
 -- into Q, R ← C(δω)·R, t ← t + δt, and returns the damping used and the predicted squared
 -- displacement of the points; nil when no damping up to 1e8 solves.
 local function step(N, lambda, P, Q)
   local disp, d1, d2, d3, d4, d5, d6
   lambda, disp, d1, d2, d3, d4, d5, d6 = damped_step(N, lambda)
   if not lambda then return nil end
-  local c11, c12, c13, c21, c22, c23, c31, c32, c33 = cayley(d1, d2, d3)
-  for j = 1, 3 do
-    local a, b, c = P[j], P[3 + j], P[6 + j]
-    Q[j] = c11 * a + c12 * b + c13 * c
-    Q[3 + j] = c21 * a + c22 * b + c23 * c
-    Q[6 + j] = c31 * a + c32 * b + c33 * c
-  end
+  turn(d1, d2, d3, P, Q)
   Q[10], Q[11], Q[12] = P[10] + d4, P[11] + d5, P[12] + d6
   return lambda, disp
 end
